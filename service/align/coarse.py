@@ -1,0 +1,129 @@
+"""Streaming inertial-frame coarse alignment (seed 000; alignment-math.md §3).
+
+Per sample: integrate C_{b(t)}^{b0} and α(t) (strapdown.py); every ``obs_interval_s`` take a
+vector pair from the observation source and fold it into the recursive K-matrix solver
+(solvers.py). The current attitude follows from the chain rule
+``C_b^n(t) = C_{n0}^{n(t)} · C_b^n(0) · C_{b(t)}^{b0}``. Memory is O(1) whatever the run length.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .conventions import dcm_from_quat, quat_from_dcm
+from .earth import Site
+from .observations import FixedSiteSource, ObservationSource
+from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
+from .solvers import RecursiveK
+from .strapdown import InertialIntegrator
+
+
+@dataclass(frozen=True, slots=True)
+class AttitudeSolution:
+    """The attitude estimate at one instant.
+
+    t : time of the sample (s, input time base). q_b_n : [w, x, y, z] of C_b^n(t).
+    heading_sigma_deg, level_sigma_deg : 1-sigma of the actual error, bias limit included.
+    rho, trace_P : the solver's last gain and covariance trace; n_obs : observations used.
+    """
+
+    t: float
+    q_b_n: np.ndarray
+    heading_sigma_deg: float
+    level_sigma_deg: float
+    rho: float
+    trace_P: float
+    n_obs: int
+
+
+class InertialCoarseAlignment:
+    """Recursive OPREQ (or REQUEST / q-method) alignment in the inertial frame.
+
+    Parameters
+    ----------
+    source : observation source (``FixedSiteSource(site)`` for a non-translating base).
+    grade : datasheet sensor figures; set μ(t) and the reported σ.
+    solver : the K-matrix estimator.
+    sample_period_s : nominal IMU sample period (s); the start t0 is one period before the first
+        sample's time stamp, since a sample's time marks the end of its interval.
+    obs_interval_s : time between observations fed to the solver (s).
+    disturbance_velocity_mps : bounded velocity-like disturbance of α in OPREQ's noise model (m/s).
+    """
+
+    def __init__(self, source: ObservationSource, grade: SensorGrade, solver: RecursiveK,
+                 sample_period_s: float, obs_interval_s: float = 0.1, disturbance_velocity_mps: float = 1e-3) -> None:
+        if obs_interval_s < sample_period_s:
+            raise ValueError("obs_interval_s must be at least one sample period")
+        self.source = source
+        self.grade = grade
+        self.solver = solver
+        self.sample_period_s = sample_period_s
+        self.obs_interval_s = obs_interval_s
+        self.disturbance_velocity_mps = disturbance_velocity_mps
+        self.integrator = InertialIntegrator()
+        self._lat = source.site.lat
+        self._gravity = source.site.gravity
+        self.t0: float | None = None
+        self.t: float | None = None
+        self._obs_count = 0
+        self._cached: AttitudeSolution | None = None
+
+    def update(self, dtheta: np.ndarray, dv: np.ndarray, t: float) -> None:
+        """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
+        self.update_block(np.asarray([t], dtype=float), np.reshape(dtheta, (1, 3)), np.reshape(dv, (1, 3)))
+
+    def update_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> None:
+        """N consecutive samples: times t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s."""
+        if len(t) == 0:
+            return
+        if self.t0 is None:
+            self.t0 = float(t[0]) - self.sample_period_s
+        q_b_b0, alpha = self.integrator.integrate(dtheta, dv)
+        elapsed = np.asarray(t, dtype=float) - self.t0
+        # observation k is due at k·interval; a sample within half a period of it takes it
+        counts = np.floor((elapsed + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
+        due = np.flatnonzero(np.diff(counts, prepend=self._obs_count) > 0)
+        if len(due):
+            b, r = self.source.vectors(elapsed[due], alpha[due], q_b_b0[due])
+            b = b / np.linalg.norm(b, axis=1, keepdims=True)
+            r = r / np.linalg.norm(r, axis=1, keepdims=True)
+            self.solver.add(b, r, self.grade.observation_variance(elapsed[due], self._gravity,
+                                                                          self.disturbance_velocity_mps))
+            self._obs_count = int(counts[-1])
+        self.t = float(t[-1])
+        self._cached = None
+
+    @property
+    def elapsed_s(self) -> float:
+        return 0.0 if self.t is None else self.t - self.t0
+
+    @property
+    def q_b_n0(self) -> np.ndarray:
+        """Estimate of the constant C_b^n(0) as [w, x, y, z]."""
+        return self.solver.quaternion()
+
+    @property
+    def solution(self) -> AttitudeSolution:
+        """The current attitude C_b^n(t) with its uncertainty (computed on demand, cached)."""
+        if self._cached is None:
+            C_b_n0 = dcm_from_quat(self.q_b_n0)
+            C_b_b0 = dcm_from_quat(self.integrator.q_b_b0)
+            C_b_n = self.source.C_n_n0(self.elapsed_s).T @ C_b_n0 @ C_b_b0
+            if self.solver.n_obs == 0:
+                heading_sigma = level_sigma = SIGMA_UNKNOWN_DEG
+            else:
+                sigma = inertial_alignment_sigma(self.grade, self._lat, self._gravity, self.elapsed_s)
+                heading_sigma, level_sigma = sigma.heading_deg, sigma.level_deg
+            self._cached = AttitudeSolution(t=self.t if self.t is not None else 0.0, q_b_n=quat_from_dcm(C_b_n),
+                                            heading_sigma_deg=heading_sigma, level_sigma_deg=level_sigma,
+                                            rho=self.solver.rho, trace_P=self.solver.trace_P,
+                                            n_obs=self.solver.n_obs)
+        return self._cached
+
+
+def fixed_site_alignment(site: Site, grade: SensorGrade, sample_period_s: float, solver: str = "opreq",
+                         rho: float = 0.01, obs_interval_s: float = 0.1) -> InertialCoarseAlignment:
+    """Coarse alignment of a base fixed in position with the named solver."""
+    return InertialCoarseAlignment(FixedSiteSource(site), grade, RecursiveK(solver, rho), sample_period_s,
+                                   obs_interval_s)

@@ -1,0 +1,163 @@
+"""Frames, attitude representations and unit conversions: the one place that pins them.
+
+Frames (see README "Conventions"):
+    n   local-level navigation frame, East-North-Up (ENU)
+    b   IMU body frame, Right-Front-Up (x right, y forward, z up)
+    n0, b0  inertially frozen copies of n and b at the alignment start
+
+Names put the destination frame first: ``C_b_n`` is C_b^n, mapping body vectors to navigation
+vectors (``v_n = C_b_n @ v_b``); ``q_b_n = [w, x, y, z]`` (scalar first, Hamilton product) is
+the same rotation, ``v_n = q ⊗ v_b ⊗ q*``.
+
+Euler angles are for display only: pitch θ about body x (nose up +), roll γ about body y
+(right wing down +), heading ψ clockwise from true North in [0°, 360°);
+``C_b_n = Rz(-ψ) · Rx(θ) · Ry(γ)``.
+
+Misalignment φ (n-frame components φ_E, φ_N, φ_U) of an estimate:
+``C_b_n_est = (I - [φ×]) C_b_n_true``; the heading error (estimate - truth, clockwise) is ≈ +φ_U.
+
+Every function is vectorised over leading axes: a quaternion is ``(..., 4)``, a DCM
+``(..., 3, 3)``, a vector ``(..., 3)``.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+DEG = np.pi / 180.0
+"""One degree in rad."""
+DH_TO_RS = DEG / 3600.0
+"""°/h → rad/s."""
+DRH_TO_RRS = DEG / 60.0
+"""°/√h → rad/√s (angle random walk)."""
+UG_TO_MS2 = 9.80665e-6
+"""µg → m/s² (standard gravity, the datasheet unit)."""
+
+
+def skew(v: np.ndarray) -> np.ndarray:
+    """Cross-product matrix [v×], so that ``skew(a) @ b == cross(a, b)``. Shape (..., 3, 3)."""
+    v = np.asarray(v, dtype=float)
+    S = np.zeros(v.shape[:-1] + (3, 3))
+    S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
+    S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
+    S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
+    return S
+
+
+def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product p ⊗ q of [w, x, y, z] quaternions (broadcasting)."""
+    pw, px, py, pz = np.moveaxis(np.asarray(p, dtype=float), -1, 0)
+    qw, qx, qy, qz = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack((pw * qw - px * qx - py * qy - pz * qz,
+                     pw * qx + px * qw + py * qz - pz * qy,
+                     pw * qy - px * qz + py * qw + pz * qx,
+                     pw * qz + px * qy - py * qx + pz * qw), axis=-1)
+
+
+def quat_conjugate(q: np.ndarray) -> np.ndarray:
+    """Conjugate (inverse of a unit quaternion)."""
+    q = np.asarray(q, dtype=float)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def quat_normalize(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion with a non-negative scalar part (one of the two signs, chosen fixed)."""
+    q = np.asarray(q, dtype=float)
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    return np.where(q[..., :1] < 0.0, -q, q)
+
+
+def quat_from_rotvec(phi: np.ndarray) -> np.ndarray:
+    """Quaternion of the rotation vector φ (rad): exp(φ/2), closed form, exact for any angle."""
+    phi = np.asarray(phi, dtype=float)
+    angle = np.linalg.norm(phi, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(x)/x by its series below 1e-4 rad, where the series is exact to double precision
+    small = half < 1e-4
+    safe = np.where(small, 1.0, half)
+    k = np.where(small, 0.5 * (1.0 - half * half / 6.0), 0.5 * np.sin(safe) / safe)
+    return np.concatenate((np.cos(half), k * phi), axis=-1)
+
+
+def rotvec_from_quat(q: np.ndarray) -> np.ndarray:
+    """Rotation vector (rad, angle in [0, π]) of a unit quaternion."""
+    q = quat_normalize(q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., :1])
+    scale = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0)
+    return scale * v
+
+
+def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """C(q) v for unit quaternions q, without forming the matrix."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def dcm_from_quat(q: np.ndarray) -> np.ndarray:
+    """Direction cosine matrix of a unit quaternion: C = (w² - u·u) I + 2 u uᵀ + 2 w [u×]."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    return np.stack((
+        np.stack((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)), -1),
+        np.stack((2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)), -1),
+        np.stack((2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)), -1),
+    ), axis=-2)
+
+
+def quat_from_dcm(C: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w ≥ 0) of a rotation matrix, via the symmetric 4×4 eigenproblem.
+
+    Bar-Itzhack's method: robust for every rotation and it returns the nearest rotation when
+    C is slightly non-orthogonal.
+    """
+    C = np.asarray(C, dtype=float)
+    K = np.empty(C.shape[:-2] + (4, 4))
+    K[..., 0, 0] = C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2]
+    K[..., 1, 1] = C[..., 0, 0] - C[..., 1, 1] - C[..., 2, 2]
+    K[..., 2, 2] = -C[..., 0, 0] + C[..., 1, 1] - C[..., 2, 2]
+    K[..., 3, 3] = -C[..., 0, 0] - C[..., 1, 1] + C[..., 2, 2]
+    K[..., 0, 1] = K[..., 1, 0] = C[..., 2, 1] - C[..., 1, 2]
+    K[..., 0, 2] = K[..., 2, 0] = C[..., 0, 2] - C[..., 2, 0]
+    K[..., 0, 3] = K[..., 3, 0] = C[..., 1, 0] - C[..., 0, 1]
+    K[..., 1, 2] = K[..., 2, 1] = C[..., 1, 0] + C[..., 0, 1]
+    K[..., 1, 3] = K[..., 3, 1] = C[..., 0, 2] + C[..., 2, 0]
+    K[..., 2, 3] = K[..., 3, 2] = C[..., 2, 1] + C[..., 1, 2]
+    _, vectors = np.linalg.eigh(K)
+    return quat_normalize(vectors[..., :, -1])
+
+
+def dcm_from_euler(heading: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:
+    """C_b^n = Rz(-heading) Rx(pitch) Ry(roll); angles in rad, heading clockwise from North."""
+    heading, pitch, roll = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (heading, pitch, roll)))
+    sh, ch = np.sin(heading), np.cos(heading)
+    sp, cp = np.sin(pitch), np.cos(pitch)
+    sr, cr = np.sin(roll), np.cos(roll)
+    return np.stack((
+        np.stack((ch * cr + sh * sp * sr, sh * cp, ch * sr - sh * sp * cr), -1),
+        np.stack((-sh * cr + ch * sp * sr, ch * cp, -sh * sr - ch * sp * cr), -1),
+        np.stack((-cp * sr, sp, cp * cr), -1),
+    ), axis=-2)
+
+
+def euler_from_dcm(C_b_n: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(heading in [0, 2π), pitch, roll) in rad of C_b^n."""
+    C = np.asarray(C_b_n, dtype=float)
+    heading = np.mod(np.arctan2(C[..., 0, 1], C[..., 1, 1]), 2.0 * np.pi)
+    pitch = np.arcsin(np.clip(C[..., 2, 1], -1.0, 1.0))
+    roll = np.arctan2(-C[..., 2, 0], C[..., 2, 2])
+    return heading, pitch, roll
+
+
+def misalignment(C_b_n_est: np.ndarray, C_b_n_true: np.ndarray) -> np.ndarray:
+    """φ (rad, n-frame E/N/U) with C_est = exp(-[φ×]) C_true ≈ (I - [φ×]) C_true; φ_U ≈ heading error."""
+    M = np.asarray(C_b_n_est) @ np.swapaxes(np.asarray(C_b_n_true), -1, -2)
+    return -rotvec_from_quat(quat_from_dcm(M))
+
+
+def wrap_pi(angle: np.ndarray) -> np.ndarray:
+    """Wrap an angle (rad) into [-π, π)."""
+    return np.mod(np.asarray(angle) + np.pi, 2.0 * np.pi) - np.pi

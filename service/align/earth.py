@@ -1,0 +1,95 @@
+"""WGS-84 Earth model in the ENU navigation frame (alignment-math.md §1, §3).
+
+Units are SI: latitude in rad, height in m, rates in rad/s, gravity in m/s².
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .conventions import skew
+
+A_M = 6378137.0
+"""WGS-84 semi-major axis (m)."""
+F = 1.0 / 298.257223563
+"""WGS-84 flattening."""
+E2 = F * (2.0 - F)
+"""First eccentricity squared."""
+OMEGA_IE = 7.2921151467e-5
+"""Earth rotation rate ω_ie (rad/s)."""
+GM = 3.986004418e14
+"""Earth's gravitational constant (m³/s²)."""
+_GAMMA_E = 9.7803253359
+"""Normal gravity at the equator (m/s²)."""
+_SOMIGLIANA_K = 0.00193185265241
+_M = OMEGA_IE**2 * A_M**2 * (A_M * (1 - F)) / GM
+
+
+def normal_gravity(lat: float, height_m: float = 0.0) -> float:
+    """Magnitude of WGS-84 normal gravity (gravitation plus centripetal) at (lat, h), m/s².
+
+    Somigliana's closed form on the ellipsoid with the second-order free-air correction.
+    """
+    s2 = np.sin(lat) ** 2
+    g0 = _GAMMA_E * (1.0 + _SOMIGLIANA_K * s2) / np.sqrt(1.0 - E2 * s2)
+    return float(g0 * (1.0 - 2.0 / A_M * (1.0 + F + _M - 2.0 * F * s2) * height_m
+                       + 3.0 / A_M**2 * height_m**2))
+
+
+def radii(lat: float) -> tuple[float, float]:
+    """Meridian and prime-vertical radii of curvature (R_M, R_N), m."""
+    w = 1.0 - E2 * np.sin(lat) ** 2
+    return float(A_M * (1.0 - E2) / w**1.5), float(A_M / np.sqrt(w))
+
+
+def earth_rate_n(lat: float) -> np.ndarray:
+    """ω_ie^n = [0, Ω cos L, Ω sin L] (rad/s, ENU)."""
+    return np.array([0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)])
+
+
+@dataclass(frozen=True, slots=True)
+class Site:
+    """A fixed position: latitude and longitude in rad, height in m (WGS-84)."""
+
+    lat: float
+    lon: float = 0.0
+    height_m: float = 0.0
+
+    @property
+    def gravity(self) -> float:
+        """Normal gravity magnitude g (m/s²); g^n = [0, 0, -g]."""
+        return normal_gravity(self.lat, self.height_m)
+
+    @property
+    def omega_ie_n(self) -> np.ndarray:
+        return earth_rate_n(self.lat)
+
+
+def C_n_n0_fixed(lat: float, dt_s: np.ndarray) -> np.ndarray:
+    """C_{n(t)}^{n0} for a fixed site: rotation by Ω·dt about the Earth axis u = [0, cos L, sin L].
+
+    ``dt_s`` is the time since the alignment start, shape (...,); returns (..., 3, 3).
+    """
+    theta = OMEGA_IE * np.asarray(dt_s, dtype=float)
+    c, s = np.cos(theta), np.sin(theta)
+    u = np.array([0.0, np.cos(lat), np.sin(lat)])
+    outer = np.outer(u, u)
+    return (c[..., None, None] * np.eye(3) + s[..., None, None] * skew(u)
+            + (1.0 - c)[..., None, None] * outer)
+
+
+def beta_fixed(lat: float, gravity: float, dt_s: np.ndarray) -> np.ndarray:
+    """β(t) = -∫_0^t C_{n(τ)}^{n0} g^n dτ for a fixed site, in n0 (ENU at t0) axes, m/s.
+
+    Closed form (alignment-math.md §3): the local up vector turns east about the Earth axis.
+    ``dt_s`` (...,) is the time since the alignment start; returns (..., 3).
+    """
+    t = np.asarray(dt_s, dtype=float)
+    cL, sL = np.cos(lat), np.sin(lat)
+    wt = OMEGA_IE * t
+    # t - sin(Ωt)/Ω loses all digits for small Ωt in floating point: use its series there
+    t_minus_sin = np.where(wt > 1e-3, t - np.sin(wt) / OMEGA_IE,
+                           t * wt**2 / 6.0 * (1.0 - wt**2 / 20.0 + wt**4 / 840.0))
+    one_minus_cos = 2.0 * np.sin(0.5 * wt) ** 2 / OMEGA_IE
+    return gravity * np.stack((cL * one_minus_cos, sL * cL * t_minus_sin, t - cL**2 * t_minus_sin), axis=-1)

@@ -1,0 +1,42 @@
+"""Observation sources of inertial-frame alignment: vector pairs b_k = C_n^b(0) r_k (math §3).
+
+A source turns the integrator's output at the observation epochs (α(t) and C_{b(t)}^{b0}) into
+an observation vector b in b0 axes and a reference vector r in n0 axes, and knows how the
+navigation frame turns, C_{n(t)}^{n0}. The coarse alignment and its solvers do not care where
+the pairs come from: aided modes (odometer/DVL velocity, GNSS velocity or position, a master
+INS) are further sources with the same two methods.
+"""
+from __future__ import annotations
+
+from typing import Protocol
+
+import numpy as np
+
+from .earth import C_n_n0_fixed, Site, beta_fixed
+
+
+class ObservationSource(Protocol):
+    site: Site
+    """Position at the alignment start (sets latitude and gravity of the σ model)."""
+
+    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(b, r), each (M, 3), not necessarily unit, at M epochs ``elapsed_s`` after the start."""
+        ...
+
+    def C_n_n0(self, elapsed_s: float) -> np.ndarray:
+        """C_{n(t)}^{n0} (3, 3) at ``elapsed_s`` after the start."""
+        ...
+
+
+class FixedSiteSource:
+    """A base that does not translate (static, swinging, turntable): b = α, r = β (closed form)."""
+
+    def __init__(self, site: Site) -> None:
+        self.site = site
+        self._gravity = site.gravity
+
+    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return alpha_b0, beta_fixed(self.site.lat, self._gravity, elapsed_s)
+
+    def C_n_n0(self, elapsed_s: float) -> np.ndarray:
+        return C_n_n0_fixed(self.site.lat, elapsed_s)

@@ -1,0 +1,109 @@
+"""Sensor grade, the observation-noise model of OPREQ, and the accuracy limits (math §3.2, §3.3).
+
+A :class:`SensorGrade` holds datasheet 1-sigma figures in SI units. From it follow
+- μ(t), the per-axis variance of the normalised observation b = α/|α| (OPREQ's noise model);
+- the physical limit of the misalignment set by the actual biases (what no method removes);
+- 1-sigma attitude uncertainties after an alignment time T, bias part plus noise part.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
+from .earth import OMEGA_IE
+
+ESTIMATOR_EFFICIENCY = 2.0
+"""Variance of the recursive OPREQ heading over the least-squares floor, measured by Monte Carlo
+(``sinsalign eval``: seed-000 swing and turntable scenarios, ≈1.4² at 100-300 s)."""
+SIGMA_UNKNOWN_DEG = 360.0 / np.sqrt(12.0)
+"""1-sigma of an angle that is uniformly unknown over a full turn (103.9°): the cap of every σ."""
+
+
+@dataclass(frozen=True, slots=True)
+class SensorGrade:
+    """Datasheet 1-sigma figures, the same on every axis, in SI units.
+
+    gyro_bias_rad_s : in-run constant gyro bias (rad/s).
+    gyro_arw_rad_rts : angle random walk (rad/√s).
+    acc_bias_ms2 : accelerometer bias (m/s²).
+    acc_vrw_ms_rts : velocity random walk (m/s/√s).
+    """
+
+    gyro_bias_rad_s: float
+    gyro_arw_rad_rts: float
+    acc_bias_ms2: float
+    acc_vrw_ms_rts: float
+
+    @classmethod
+    def from_datasheet(cls, gyro_bias_deg_h: float, gyro_arw_deg_rth: float, acc_bias_ug: float,
+                       acc_vrw_ug_rthz: float) -> SensorGrade:
+        """From the units of the IMU log's comment keys: °/h, °/√h, µg, µg/√Hz."""
+        return cls(gyro_bias_deg_h * DH_TO_RS, gyro_arw_deg_rth * DRH_TO_RRS,
+                   acc_bias_ug * UG_TO_MS2, acc_vrw_ug_rthz * UG_TO_MS2)
+
+    def observation_variance(self, elapsed_s: np.ndarray, gravity: float,
+                             disturbance_velocity_mps: float = 1e-3) -> np.ndarray:
+        """μ(t) (rad², per axis) of b = α/|α| after ``elapsed_s`` of integration.
+
+        Only errors that differ randomly between observations count. The biases are left out:
+        a constant accelerometer bias tilts every α alike (the solver absorbs it as the level
+        limit) and a gyro bias drifts C_b^{b0} the same way in every run (it makes the heading
+        limit); counted as noise they flatten μ so that the first, least informative vectors
+        weigh as much as the last, which slows settling and biases the heading. What remains:
+        velocity random walk averaging down as VRW²/(g² t); a bounded velocity-like disturbance
+        v_d (base motion, bias seen through the swinging body) shrinking as (v_d / g t)². The
+        gyro angle random walk is left out as well: its tilt is the same growing error in every
+        later α, and as independent noise (N² t / 3) it would discount the late vectors that
+        carry the heading (measured: turntable scenario, seed-to-seed heading STD 0.128° with it,
+        0.114° without).
+        """
+        t = np.maximum(np.asarray(elapsed_s, dtype=float), 1e-9)
+        return self.acc_vrw_ms_rts**2 / (gravity**2 * t) + (disturbance_velocity_mps / (gravity * t)) ** 2
+
+
+def physical_limit(acc_bias_n: np.ndarray, gyro_bias_n: np.ndarray, lat: float, gravity: float) -> np.ndarray:
+    """Misalignment φ = (φ_E, φ_N, φ_U) in rad left by n-frame biases (alignment-math.md §3.3).
+
+    φ_E = -∇_N/g, φ_N = ∇_E/g, φ_U = ∇_E tan L / g - ε_E / (Ω cos L).
+    ``acc_bias_n`` (m/s²) and ``gyro_bias_n`` (rad/s) are (..., 3) ENU vectors.
+    """
+    acc = np.asarray(acc_bias_n, dtype=float)
+    gyro = np.asarray(gyro_bias_n, dtype=float)
+    return np.stack((-acc[..., 1] / gravity, acc[..., 0] / gravity,
+                     acc[..., 0] * np.tan(lat) / gravity - gyro[..., 0] / (OMEGA_IE * np.cos(lat))), axis=-1)
+
+
+@dataclass(frozen=True, slots=True)
+class AttitudeSigma:
+    """1-sigma attitude uncertainty in degrees: heading and each horizontal tilt."""
+
+    heading_deg: float
+    level_deg: float
+
+
+def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:
+    """1-sigma error of inertial-frame coarse alignment after ``elapsed_s`` seconds.
+
+    Bias part (the §3.3 limit with 1-sigma biases) plus the noise part of a least-squares fit
+    of the α history: in the north channel α_N(t) = g t δθ + ½ g Ω cos L t² δψ + noise, so a
+    white accelerometer noise of density q = VRW² leaves Var(δψ) = 12 q / (g Ω cos L)² / T³ and
+    Var(δθ) = 4 q / (g² T), while a gyro random walk gives Var(δψ) = 1.2 N² / (Ω cos L)² / T.
+    The gyro bias also tilts the integrated body attitude by ε T on every axis. The noise
+    variances are scaled by the measured efficiency of the recursive estimator.
+    """
+    T = float(elapsed_s)
+    if T <= 0.0:
+        return AttitudeSigma(SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG)
+    w_cos = OMEGA_IE * np.cos(lat)
+    q = grade.acc_vrw_ms_rts**2
+    N2 = grade.gyro_arw_rad_rts**2
+    bias_heading2 = (np.tan(lat) * grade.acc_bias_ms2 / gravity) ** 2 + (grade.gyro_bias_rad_s / w_cos) ** 2
+    drift2 = (grade.gyro_bias_rad_s * T) ** 2
+    noise_heading2 = 12.0 * q / (gravity * w_cos) ** 2 / T**3 + 1.2 * N2 / w_cos**2 / T
+    noise_level2 = 4.0 * q / (gravity**2 * T) + N2 * T / 3.0
+    heading2 = bias_heading2 + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
+    level2 = (grade.acc_bias_ms2 / gravity) ** 2 + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
+    return AttitudeSigma(min(float(np.sqrt(heading2)) / DEG, SIGMA_UNKNOWN_DEG),
+                         min(float(np.sqrt(level2)) / DEG, SIGMA_UNKNOWN_DEG))

@@ -1,0 +1,123 @@
+"""Attitude determination from vector pairs b = A r with a constant A (alignment-math.md §3.1-3.2).
+
+All solvers keep O(1) state: the 4×4 Davenport matrix K, its weight m and the scalar trace of
+the covariance P of K's error (Φ = I and isotropic Q make the traces enough for the gain).
+They differ only in the gain ρ_k that blends a new observation into K:
+
+- Optimal-REQUEST (Choukroun 2004, seed 000): ρ* = m² tr P / (m² tr P + δm² tr R);
+- REQUEST: a fixed fading gain ρ;
+- batch q-method (OBA): ρ_k = 1/(k+1), the equally weighted sum of every δK, streamed.
+
+Matrix convention: K = [[S - σI, z], [zᵀ, σ]] with the vector part first; its top eigenvector
+q̄ = [q_v, q_4] gives A(q̄) = (q_4² - q_v·q_v) I + 2 q_v q_vᵀ - 2 q_4 [q_v×]. With b in body
+and r in navigation axes A = C_n^b, so the Hamilton quaternion of C_b^n is [q_4, q_v].
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .conventions import quat_normalize, skew
+
+SOLVERS = ("opreq", "request", "qmethod")
+
+
+def delta_K(b: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Davenport matrices δK (M, 4, 4) of unit vector pairs b, r (M, 3), unit weight each."""
+    B = b[:, :, None] * r[:, None, :]
+    sigma = np.einsum("mii->m", B)
+    K = np.empty((len(b), 4, 4))
+    K[:, :3, :3] = B + np.swapaxes(B, 1, 2) - sigma[:, None, None] * np.eye(3)
+    z = np.cross(b, r)
+    K[:, :3, 3] = z
+    K[:, 3, :3] = z
+    K[:, 3, 3] = sigma
+    return K
+
+
+def request_noise(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> np.ndarray:
+    """R = E[V Vᵀ] (M, 4, 4) of the noise V of δK when E[δb δbᵀ] = μ (I - b bᵀ) (first order).
+
+    R11 = μ {[3 - (bᵀr)²] I + (bᵀr)(b rᵀ + r bᵀ) + [r×] b bᵀ [r×]ᵀ}, R12 = 0, R22 = 2μ.
+    """
+    c = np.einsum("mi,mi->m", b, r)
+    rx_b = np.einsum("mij,mj->mi", skew(r), b)
+    R = np.zeros((len(b), 4, 4))
+    R[:, :3, :3] = ((3.0 - c**2)[:, None, None] * np.eye(3)
+                    + c[:, None, None] * (b[:, :, None] * r[:, None, :] + r[:, :, None] * b[:, None, :])
+                    + rx_b[:, :, None] * rx_b[:, None, :])
+    R[:, 3, 3] = 2.0
+    return mu[:, None, None] * R
+
+
+def quaternion_from_K(K: np.ndarray) -> np.ndarray:
+    """Hamilton [w, x, y, z] of C_b^n from the top eigenvector of K (see the module docstring)."""
+    _, vectors = np.linalg.eigh(K)
+    top = vectors[:, -1]
+    return quat_normalize(np.array([top[3], top[0], top[1], top[2]]))
+
+
+class RecursiveK:
+    """Recursive K-matrix attitude estimator with a selectable gain policy (see module docstring).
+
+    Parameters
+    ----------
+    solver : "opreq", "request" or "qmethod".
+    rho : the fixed fading gain of "request" (seed 000 compares 0.1, 0.01, 0.001).
+    trace_Q : trace of the process noise added per observation (slow decorrelation; default 0).
+    """
+
+    def __init__(self, solver: str = "opreq", rho: float = 0.01, trace_Q: float = 0.0) -> None:
+        if solver not in SOLVERS:
+            raise ValueError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
+        if solver == "request" and not 0.0 < rho <= 1.0:
+            raise ValueError(f"REQUEST gain rho must be in (0, 1], got {rho}")
+        self.solver = solver
+        self.fixed_rho = rho
+        self.trace_Q = trace_Q
+        self.K = np.zeros((4, 4))
+        self.m = 0.0
+        self.trace_P = np.inf
+        self.rho = 1.0
+        self.n_obs = 0
+
+    def add(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> None:
+        """Fold in M single-vector observations in time order.
+
+        b, r : (M, 3) unit observation (body) and reference (navigation) vectors.
+        mu : (M,) per-axis variance of each b (rad²), OPREQ's noise model.
+        """
+        dK = delta_K(b, r)
+        trace_R = np.trace(request_noise(b, r, np.asarray(mu, dtype=float)), axis1=1, axis2=2)
+        # Every step is K ← a K + c δK: run the scalar recursion, then combine the δK at once.
+        coef = np.empty(len(b))
+        scale = 1.0
+        m, trace_P, n = self.m, self.trace_P, self.n_obs
+        for j, tr_R in enumerate(trace_R):
+            if n == 0:  # K_0 = δK_0, P_0 = R_0, m_0 = 1
+                a, c, m, trace_P, rho = 0.0, 1.0, 1.0, tr_R, 1.0
+            else:
+                trace_P += self.trace_Q
+                rho = self._gain(m, trace_P, tr_R, n)
+                m_new = (1.0 - rho) * m + rho
+                a, c = (1.0 - rho) * m / m_new, rho / m_new
+                trace_P = a * a * trace_P + c * c * tr_R
+                m = m_new
+            coef[:j] *= a
+            coef[j] = c
+            scale *= a
+            n += 1
+        self.K = scale * self.K + np.tensordot(coef, dK, axes=1)
+        self.m, self.trace_P, self.n_obs, self.rho = m, trace_P, n, rho
+
+    def _gain(self, m: float, trace_P: float, trace_R: float, n_before: int) -> float:
+        if self.solver == "opreq":
+            return m * m * trace_P / (m * m * trace_P + trace_R)
+        if self.solver == "request":
+            return self.fixed_rho
+        return 1.0 / (n_before + 1.0)
+
+    def quaternion(self) -> np.ndarray:
+        """Current estimate of C_b^n(0) as [w, x, y, z]; identity before any observation."""
+        if self.n_obs == 0:
+            return np.array([1.0, 0.0, 0.0, 0.0])
+        return quaternion_from_K(self.K)

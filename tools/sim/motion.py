@@ -1,0 +1,87 @@
+"""Angular motion of a base that does not translate: static, swinging, turntable positions.
+
+Each Euler angle (heading clockwise from North, pitch, roll; rad) is a centre that steps between
+turntable positions with raised-cosine transitions, plus a sum of sinusoids
+A sin(2π f t + φ) (the swing model of seed 000). Angles and their rates are analytic, so body
+rates follow exactly from the Euler-angle kinematics.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sinsalign.service.align.conventions import dcm_from_euler
+
+
+@dataclass(frozen=True, slots=True)
+class Sinusoid:
+    """A sin(2π f t + phase) + nothing else; amplitude and phase in rad, frequency in Hz."""
+
+    amplitude: float
+    freq_hz: float
+    phase: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class AngleProfile:
+    """One Euler angle (rad): a centre, optional turntable steps, optional sinusoids.
+
+    ``steps`` are (t_start_s, new_centre) pairs in time order; each move takes
+    ``transition_s`` with a raised-cosine profile (rate continuous at its ends).
+    """
+
+    centre: float = 0.0
+    sinusoids: tuple[Sinusoid, ...] = ()
+    steps: tuple[tuple[float, float], ...] = ()
+    transition_s: float = 10.0
+
+    def value_and_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Angle (rad) and its time derivative (rad/s) at times t (s)."""
+        t = np.asarray(t, dtype=float)
+        value = np.full_like(t, self.centre)
+        rate = np.zeros_like(t)
+        previous = self.centre
+        for t_start, target in self.steps:
+            x = np.clip((t - t_start) / self.transition_s, 0.0, 1.0)
+            inside = (x > 0.0) & (x < 1.0)
+            value += (target - previous) * 0.5 * (1.0 - np.cos(np.pi * x))
+            rate += np.where(inside, (target - previous) * 0.5 * np.pi / self.transition_s * np.sin(np.pi * x), 0.0)
+            previous = target
+        for s in self.sinusoids:
+            w = 2.0 * np.pi * s.freq_hz
+            value += s.amplitude * np.sin(w * t + s.phase)
+            rate += s.amplitude * w * np.cos(w * t + s.phase)
+        return value, rate
+
+
+@dataclass(frozen=True, slots=True)
+class AngularMotion:
+    """Attitude history C_b^n(t) of a base fixed in position."""
+
+    heading: AngleProfile = field(default_factory=AngleProfile)
+    pitch: AngleProfile = field(default_factory=AngleProfile)
+    roll: AngleProfile = field(default_factory=AngleProfile)
+
+    def attitude(self, t: np.ndarray) -> np.ndarray:
+        """C_b^n at times t, shape (..., 3, 3)."""
+        return dcm_from_euler(self.heading.value_and_rate(t)[0], self.pitch.value_and_rate(t)[0],
+                              self.roll.value_and_rate(t)[0])
+
+    def attitude_and_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """C_b^n (..., 3, 3) and ω_nb^b (..., 3, rad/s) at times t.
+
+        With C_b^n = Rz(-ψ) Rx(θ) Ry(γ):
+        ω_nb^b = Ry(γ)ᵀ ([θ̇, 0, 0] + Rx(θ)ᵀ [0, 0, -ψ̇]) + [0, γ̇, 0].
+        """
+        psi, psi_dot = self.heading.value_and_rate(t)
+        theta, theta_dot = self.pitch.value_and_rate(t)
+        gamma, gamma_dot = self.roll.value_and_rate(t)
+        yaw_dot = -psi_dot  # counter-clockwise yaw rate about Up
+        sp, cp = np.sin(theta), np.cos(theta)
+        sr, cr = np.sin(gamma), np.cos(gamma)
+        v = np.stack((theta_dot, sp * yaw_dot, cp * yaw_dot), axis=-1)
+        omega_nb_b = np.stack((cr * v[..., 0] - sr * v[..., 2],
+                               v[..., 1] + gamma_dot,
+                               sr * v[..., 0] + cr * v[..., 2]), axis=-1)
+        return dcm_from_euler(psi, theta, gamma), omega_nb_b
