@@ -11,7 +11,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
-
 from sinsalign.service.align.earth import Site
 
 from .motion import AngularMotion

@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-
 from sinsalign.service.align.conventions import dcm_from_euler
 
 

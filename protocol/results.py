@@ -1,0 +1,67 @@
+"""Results as JSON Lines (service.md, "Pinned interfaces" 2): one object per output epoch.
+
+Fields: t (s), phase, q = [w, x, y, z] of C_b^n(t), pitch_deg, roll_deg, heading_deg (0-360,
+clockwise from true North), heading_sigma_deg, level_sigma_deg, converged; plus diagnostics
+(rho, trace_P, n_obs) that the pin allows.
+"""
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from typing import Any
+
+PHASES = ("coarse", "fine", "aligned", "disturbed")
+PINNED_FIELDS = ("t", "phase", "q", "pitch_deg", "roll_deg", "heading_deg", "heading_sigma_deg",
+                 "level_sigma_deg", "converged")
+
+
+@dataclass(frozen=True, slots=True)
+class ResultRecord:
+    t: float
+    phase: str
+    q: tuple[float, float, float, float]
+    pitch_deg: float
+    roll_deg: float
+    heading_deg: float
+    heading_sigma_deg: float
+    level_sigma_deg: float
+    converged: bool
+    rho: float
+    trace_P: float
+    n_obs: int
+
+    def as_dict(self) -> dict[str, Any]:
+        return {name: getattr(self, name) for name in self.__slots__}
+
+    def to_json(self) -> str:
+        d = self.as_dict()
+        d["q"] = list(self.q)
+        if not math.isfinite(d["trace_P"]):
+            d["trace_P"] = None  # no observation yet; JSON has no infinity
+        return json.dumps(d, separators=(",", ":"))
+
+
+def validate_result(row: Any) -> list[str]:
+    """Problems of one decoded result object against the pin (empty list when it conforms)."""
+    if not isinstance(row, dict):
+        return ["not an object"]
+    problems = [f"missing {name}" for name in PINNED_FIELDS if name not in row]
+    if problems:
+        return problems
+    for name in ("t", "pitch_deg", "roll_deg", "heading_deg", "heading_sigma_deg", "level_sigma_deg"):
+        v = row[name]
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+            problems.append(f"{name} not a finite number")
+    if row["phase"] not in PHASES:
+        problems.append(f"phase {row['phase']!r} not one of {PHASES}")
+    if not isinstance(row["converged"], bool):
+        problems.append("converged not a boolean")
+    q = row["q"]
+    if not (isinstance(q, list) and len(q) == 4 and all(isinstance(c, int | float) for c in q)):
+        problems.append("q not four numbers")
+    elif abs(math.sqrt(sum(c * c for c in q)) - 1.0) > 1e-9:
+        problems.append("q not a unit quaternion")
+    if not problems and not 0.0 <= row["heading_deg"] < 360.0:
+        problems.append("heading_deg outside [0, 360)")
+    return problems

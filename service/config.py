@@ -1,0 +1,114 @@
+"""Configuration: defaults < TOML file < command-line overrides, validated at start-up.
+
+Every key lives in one table; an unknown key or a value of the wrong type or range stops the
+start with a message that names the key. Units are in the key names.
+"""
+from __future__ import annotations
+
+import tomllib
+from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from typing import Any
+
+from .align.solvers import SOLVERS
+
+
+class ConfigError(ValueError):
+    """A configuration problem; the message names the key."""
+
+
+@dataclass(frozen=True, slots=True)
+class SensorConfig:
+    """Datasheet 1-sigma figures of the IMU; a log's own comment keys override them."""
+
+    gyro_bias_deg_h: float = 0.01
+    gyro_arw_deg_rth: float = 0.001
+    acc_bias_ug: float = 50.0
+    acc_vrw_ug_rthz: float = 5.0
+
+
+@dataclass(frozen=True, slots=True)
+class AlignmentConfig:
+    """Coarse alignment (inertial frame, seed 000)."""
+
+    solver: str = "opreq"
+    request_rho: float = 0.01
+    obs_interval_s: float = 0.1
+    disturbance_velocity_mps: float = 1e-3
+    converged_heading_sigma_deg: float = 0.1
+
+
+@dataclass(frozen=True, slots=True)
+class OutputConfig:
+    period_s: float = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class Config:
+    sensor: SensorConfig = field(default_factory=SensorConfig)
+    alignment: AlignmentConfig = field(default_factory=AlignmentConfig)
+    output: OutputConfig = field(default_factory=OutputConfig)
+
+    def as_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def _check(config: Config) -> Config:
+    a, s, o = config.alignment, config.sensor, config.output
+    if a.solver not in SOLVERS:
+        raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(SOLVERS)}")
+    checks = [
+        ("alignment.request_rho", 0.0 < a.request_rho <= 1.0, "must be in (0, 1]"),
+        ("alignment.obs_interval_s", a.obs_interval_s > 0.0, "must be > 0"),
+        ("alignment.disturbance_velocity_mps", a.disturbance_velocity_mps >= 0.0, "must be ≥ 0"),
+        ("alignment.converged_heading_sigma_deg", a.converged_heading_sigma_deg > 0.0, "must be > 0"),
+        ("output.period_s", o.period_s > 0.0, "must be > 0"),
+    ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
+    for key, ok, rule in checks:
+        if not ok:
+            raise ConfigError(f"{key}: {rule}")
+    return config
+
+
+def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
+    known = {f.name: f for f in fields(section_obj)}
+    updates = {}
+    for key, value in table.items():
+        if key not in known:
+            raise ConfigError(f"{section}.{key}: unknown key (known: {', '.join(known)})")
+        default = getattr(section_obj, key)
+        if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not type(default):
+            raise ConfigError(f"{section}.{key}: expected {type(default).__name__}, got {value!r}")
+        updates[key] = value
+    return replace(section_obj, **updates)
+
+
+def config_from_mapping(data: dict[str, Any], base: Config | None = None) -> Config:
+    """Apply a nested mapping (parsed TOML, or overrides) onto ``base`` and validate."""
+    config = base or Config()
+    sections = {f.name for f in fields(config)}
+    updates = {}
+    for section, table in data.items():
+        if section not in sections:
+            raise ConfigError(f"{section}: unknown section (known: {', '.join(sorted(sections))})")
+        if not isinstance(table, dict):
+            raise ConfigError(f"{section}: must be a table")
+        updates[section] = _merge(getattr(config, section), section, table)
+    return _check(replace(config, **updates))
+
+
+def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
+    """Defaults, then the TOML file (if any), then ``overrides`` like {"output": {"period_s": 0.5}}."""
+    config = Config()
+    if path is not None:
+        try:
+            with open(path, "rb") as stream:
+                data = tomllib.load(stream)
+        except tomllib.TOMLDecodeError as exc:
+            raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
+        except OSError as exc:
+            raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc
+        config = config_from_mapping(data, config)
+    return config_from_mapping(overrides or {}, config)

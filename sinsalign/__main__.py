@@ -1,0 +1,5 @@
+import sys
+
+from sinsalign.cli import main
+
+sys.exit(main())

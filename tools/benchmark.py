@@ -1,0 +1,93 @@
+"""Benchmarks (numbers, not pass/fail): replay throughput, per-sample latency, memory over a 24 h stream."""
+from __future__ import annotations
+
+import resource
+import tempfile
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+from rich.progress import Progress
+from sinsalign.service.align.conventions import DEG
+from sinsalign.service.align.earth import Site
+from sinsalign.service.config import Config
+from sinsalign.service.pipeline import AlignmentPipeline
+
+from .replay import replay
+from .sim.files import write_simulation
+from .sim.imu import simulate, true_increments
+from .sim.scenarios import get_scenario
+
+
+def rss_mib() -> float:
+    """Resident set size of this process (MiB), from /proc."""
+    with open("/proc/self/statm") as f:
+        pages = int(f.read().split()[1])
+    return pages * resource.getpagesize() / 2**20
+
+
+@dataclass(frozen=True, slots=True)
+class ReplayBench:
+    samples: int
+    seconds: float
+    pipeline_seconds: float
+
+    @property
+    def frames_per_s(self) -> float:
+        return self.samples / self.seconds
+
+
+def bench_replay(scenario_name: str = "seed000-swing", duration_s: float = 600.0) -> ReplayBench:
+    """Time ``sinsalign replay`` (CSV parse + pipeline + JSONL) on a simulated log, and the pipeline alone."""
+    scenario = replace(get_scenario(scenario_name), duration_s=duration_s)
+    with tempfile.TemporaryDirectory() as tmp:
+        files = write_simulation(scenario, 1, tmp)
+        start = time.perf_counter()
+        summary = replay(files.imu_csv, Path(tmp) / "out.jsonl", Config(), progress=False)
+        elapsed = time.perf_counter() - start
+    chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, duration_s, 1))
+    pipeline = AlignmentPipeline(Config(), scenario.site, scenario.rate_hz)
+    start = time.perf_counter()
+    for c in chunks:
+        pipeline.process(c.t, c.dtheta, c.dv)
+    return ReplayBench(summary.samples, elapsed, time.perf_counter() - start)
+
+
+def bench_latency(n_samples: int = 20000) -> dict[str, float]:
+    """Per-sample cost of the live path (one sample per call), microseconds: p50, p99, max."""
+    scenario = get_scenario("seed000-swing")
+    dt = 1.0 / scenario.rate_hz
+    t = np.arange(1, n_samples + 1) * dt
+    dtheta, dv = true_increments(scenario.motion, scenario.site, t - dt, dt)
+    pipeline = AlignmentPipeline(Config(), scenario.site, scenario.rate_hz)
+    cost = np.empty(n_samples)
+    for k in range(n_samples):
+        start = time.perf_counter()
+        pipeline.process(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
+        cost[k] = time.perf_counter() - start
+    us = cost * 1e6
+    return {"p50_us": float(np.percentile(us, 50)), "p99_us": float(np.percentile(us, 99)),
+            "max_us": float(us.max()), "budget_200hz_us": 5000.0}
+
+
+def bench_stream_memory(hours: float = 24.0, rate_hz: float = 200.0, progress: bool = True) -> list[tuple[float, float]]:
+    """Stream ``hours`` of a static base (generated on the fly) through the pipeline; (hour, RSS MiB) samples."""
+    site = Site(32.0 * DEG)
+    dt = 1.0 / rate_hz
+    chunk = int(60 * rate_hz)
+    dtheta0, dv0 = true_increments(get_scenario("static").motion, site, np.zeros(1), dt)
+    rng = np.random.default_rng(0)
+    pipeline = AlignmentPipeline(Config(), site, rate_hz)
+    n_chunks = int(hours * 60)
+    samples = []
+    with Progress(disable=not progress, transient=True) as bar:
+        task = bar.add_task(f"{hours:g} h stream", total=n_chunks)
+        for i in range(n_chunks):
+            t = (np.arange(chunk) + 1 + i * chunk) * dt
+            pipeline.process(t, dtheta0 + 1e-7 * rng.standard_normal((chunk, 3)),
+                             dv0 + 2.5e-6 * rng.standard_normal((chunk, 3)))
+            if i % 60 == 0 or i == n_chunks - 1:
+                samples.append(((i + 1) / 60.0, rss_mib()))
+            bar.advance(task)
+    return samples

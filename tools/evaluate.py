@@ -1,0 +1,219 @@
+"""Monte Carlo evaluation against simulated truth: tables, settling times, honesty of σ, plots.
+
+Errors are the misalignment φ = (φ_E, φ_N, φ_U) of the output attitude against the truth
+(alignment-math.md §1; φ_U ≈ heading error, estimate minus truth, clockwise). Each run's physical
+limit (§3.3) comes from its actual biases rotated into the n frame with the run's mean attitude.
+"""
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from rich.progress import Progress
+from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
+from sinsalign.service.align.sensor_model import physical_limit
+from sinsalign.service.config import Config, config_from_mapping
+from sinsalign.service.pipeline import AlignmentPipeline
+
+from .sim.imu import simulate
+from .sim.scenarios import Scenario, get_scenario
+
+SETTLE_BAND_DEG = 0.1
+HONEST_FROM_S = 30.0
+
+
+@dataclass(frozen=True, slots=True)
+class RunResult:
+    """One seed: per output epoch the time (s), φ (deg, E/N/U), σ (deg) and converged; the limit (deg)."""
+
+    seed: int
+    t: np.ndarray
+    phi_deg: np.ndarray
+    heading_sigma_deg: np.ndarray
+    level_sigma_deg: np.ndarray
+    converged: np.ndarray
+    limit_deg: np.ndarray
+
+
+def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
+    """φ limit (deg) of a run: its body-axis biases rotated into n with the mean attitude over t."""
+    C_mean = scenario.motion.attitude(t).mean(axis=0)
+    acc_n = C_mean @ np.asarray(scenario.errors.acc_bias_ms2)
+    gyro_n = C_mean @ np.asarray(scenario.errors.gyro_bias_rad_s)
+    return physical_limit(acc_n, gyro_n, scenario.site.lat, scenario.site.gravity) / DEG
+
+
+def run_once(scenario: Scenario, seed: int, config: Config) -> RunResult:
+    """Simulate one seed in memory and run the pipeline over it."""
+    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz)
+    records = []
+    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
+                          seed):
+        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv)
+    t = np.array([r.t for r in records])
+    C_est = dcm_from_quat(np.array([r.q for r in records]))
+    phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
+    return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
+                     np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
+                     run_limit_deg(scenario, t))
+
+
+def _run_task(args: tuple[str, int, dict]) -> RunResult:
+    name, seed, overrides = args
+    return run_once(get_scenario(name), seed, config_from_mapping(overrides))
+
+
+def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
+                progress: bool = True, label: str = "") -> list[RunResult]:
+    """Run every seed (in parallel processes); results in seed order."""
+    tasks = [(scenario_name, s, overrides or {}) for s in seeds]
+    workers = workers or min(len(tasks), os.cpu_count() or 1)
+    results = []
+    with Progress(disable=not progress, transient=True) as bar:
+        task = bar.add_task(f"{scenario_name} {label}".strip(), total=len(tasks))
+        if workers <= 1:
+            for t in tasks:
+                results.append(_run_task(t))
+                bar.advance(task)
+        else:
+            with ProcessPoolExecutor(workers) as pool:
+                for r in pool.map(_run_task, tasks):
+                    results.append(r)
+                    bar.advance(task)
+    return results
+
+
+@dataclass(frozen=True, slots=True)
+class WindowStats:
+    """Statistics of heading (φ_U) and level (φ_E, φ_N) errors minus the limit in a time window, deg."""
+
+    window_s: tuple[float, float]
+    heading_mean: float          # average over seeds of each run's mean (error - limit)
+    heading_seed_std: float      # STD over seeds of each run's mean (error - limit)
+    heading_inwindow_std: float  # each run's STD inside the window, averaged over seeds
+    level_east_mean: float
+    level_north_mean: float
+    limit_heading_mean: float
+
+
+def window_stats(runs: Sequence[RunResult], window_s: tuple[float, float]) -> WindowStats:
+    a, b = window_s
+    sel = (runs[0].t >= a - 1e-9) & (runs[0].t <= b + 1e-9)
+    rel = np.array([r.phi_deg[sel] - r.limit_deg for r in runs])   # (seeds, epochs, 3)
+    run_means = rel[:, :, 2].mean(axis=1)
+    return WindowStats(window_s, float(run_means.mean()), float(run_means.std()),
+                       float(rel[:, :, 2].std(axis=1).mean()), float(rel[:, :, 0].mean()), float(rel[:, :, 1].mean()),
+                       float(np.mean([r.limit_deg[2] for r in runs])))
+
+
+def settling_time_s(run: RunResult, band_deg: float = SETTLE_BAND_DEG) -> float:
+    """Time from which |heading error - limit| stays below ``band_deg`` (inf if never)."""
+    outside = np.flatnonzero(np.abs(run.phi_deg[:, 2] - run.limit_deg[2]) >= band_deg)
+    if len(outside) == 0:
+        return float(run.t[0])
+    return float(run.t[outside[-1] + 1]) if outside[-1] + 1 < len(run.t) else float("inf")
+
+
+@dataclass(frozen=True, slots=True)
+class Honesty:
+    fraction_within_2sigma: float
+    converged_beyond_3sigma: int
+    first_converged_s: float
+
+
+def honesty(runs: Sequence[RunResult], from_s: float = HONEST_FROM_S) -> Honesty:
+    """How often |heading error| ≤ 2σ after ``from_s``; converged epochs with |error| > 3σ (all epochs)."""
+    inside = np.concatenate([np.abs(r.phi_deg[r.t >= from_s, 2]) <= 2 * r.heading_sigma_deg[r.t >= from_s]
+                             for r in runs])
+    beyond = sum(int(np.sum(r.converged & (np.abs(r.phi_deg[:, 2]) > 3 * r.heading_sigma_deg))) for r in runs)
+    first = [r.t[np.argmax(r.converged)] for r in runs if r.converged.any()]
+    return Honesty(float(inside.mean()), beyond, float(np.median(first)) if first else float("inf"))
+
+
+def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
+    """Markdown table of one scenario: per window, heading and level errors relative to the limit."""
+    scenario = get_scenario(name)
+    lines = [f"**{name}** ({len(runs)} seeds) — {scenario.description}", "",
+             "| window (s) | limit φ_U (°) | mean(err−limit) (°) | seed STD (°) | in-window STD (°) "
+             "| level E err−limit (°) | level N err−limit (°) |", "|---|---|---|---|---|---|---|"]
+    for w in scenario.eval_windows_s:
+        s = window_stats(runs, w)
+        lines.append(f"| {w[0]:g}–{w[1]:g} | {s.limit_heading_mean:+.4f} | {s.heading_mean:+.4f} | "
+                     f"{s.heading_seed_std:.4f} | {s.heading_inwindow_std:.4f} | {s.level_east_mean:+.5f} | "
+                     f"{s.level_north_mean:+.5f} |")
+    settle = [settling_time_s(r) for r in runs]
+    h = honesty(runs)
+    lines += ["", f"median settling time (|err−limit| < {SETTLE_BAND_DEG}°): {np.median(settle):.1f} s; "
+              f"|heading err| ≤ 2σ after {HONEST_FROM_S:g} s: {100 * h.fraction_within_2sigma:.1f} %; "
+              f"converged epochs with |err| > 3σ: {h.converged_beyond_3sigma}; "
+              f"median first converged: {h.first_converged_s:.0f} s"]
+    return "\n".join(lines)
+
+
+SOLVER_VARIANTS = (("OPREQ", {"solver": "opreq"}), ("q-method (OBA)", {"solver": "qmethod"}),
+                   ("REQUEST ρ=0.1", {"solver": "request", "request_rho": 0.1}),
+                   ("REQUEST ρ=0.01", {"solver": "request", "request_rho": 0.01}),
+                   ("REQUEST ρ=0.001", {"solver": "request", "request_rho": 0.001}))
+
+
+def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tuple[str, dict[str, list[RunResult]]]:
+    """Markdown table comparing the solvers on one scenario (same seeds)."""
+    scenario = get_scenario(name)
+    early, late = scenario.eval_windows_s[0], scenario.eval_windows_s[-1]
+    lines = [f"**solvers on {name}** ({len(seeds)} seeds; heading error − limit, °)", "",
+             f"| solver | median settling (s) | mean {early[0]:g}–{early[1]:g} s | seed STD | "
+             f"mean {late[0]:g}–{late[1]:g} s | seed STD | in-window STD |", "|---|---|---|---|---|---|---|"]
+    all_runs = {}
+    for label, overrides in SOLVER_VARIANTS:
+        runs = monte_carlo(name, seeds, {"alignment": overrides}, progress=progress, label=label)
+        all_runs[label] = runs
+        e, s = window_stats(runs, early), window_stats(runs, late)
+        lines.append(f"| {label} | {np.median([settling_time_s(r) for r in runs]):.1f} | {e.heading_mean:+.4f} | "
+                     f"{e.heading_seed_std:.4f} | {s.heading_mean:+.4f} | {s.heading_seed_std:.4f} | "
+                     f"{s.heading_inwindow_std:.4f} |")
+    return "\n".join(lines), all_runs
+
+
+def plot_heading(name: str, runs: Sequence[RunResult], path: str | Path, others: dict[str, list[RunResult]] | None = None
+                 ) -> Path:
+    """PNG: heading error of every seed vs time, the limit band and the ±2σ envelope."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    t = runs[0].t
+    err = np.array([r.phi_deg[:, 2] for r in runs])
+    sigma = np.array([r.heading_sigma_deg for r in runs]).mean(axis=0)
+    limits = np.array([r.limit_deg[2] for r in runs])
+    fig, axes = plt.subplots(2, 1, figsize=(10, 8))
+    for ax, (lo, hi) in zip(axes, ((t[0], t[-1]), (t[-1] * 0.4, t[-1])), strict=True):
+        sel = (t >= lo) & (t <= hi)
+        for e in err:
+            ax.plot(t[sel], e[sel], color="tab:blue", lw=0.6, alpha=0.5)
+        ax.plot([], [], color="tab:blue", lw=0.6, label=f"OPREQ heading error, {len(runs)} seeds")
+        ax.fill_between(t[sel], -2 * sigma[sel], 2 * sigma[sel], color="tab:orange", alpha=0.15,
+                        label="±2σ reported (mean over seeds)")
+        ax.axhspan(limits.min(), limits.max(), color="tab:red", alpha=0.3, label="physical limit (range over seeds)")
+        ax.axhline(limits.mean(), color="tab:red", lw=1)
+        for label, other in (others or {}).items():
+            ax.plot(t[sel], np.mean([r.phi_deg[sel, 2] for r in other], axis=0), lw=1.2, label=f"{label} (seed mean)")
+        ax.set_xlim(lo, hi)
+        span = np.percentile(np.abs(err[:, sel]), 98) if sel.any() else 1.0
+        ax.set_ylim(-1.3 * span + limits.mean(), 1.3 * span + limits.mean())
+        ax.set_xlabel("time (s)")
+        ax.set_ylabel("heading error φ_U (°)")
+        ax.grid(alpha=0.3)
+    axes[0].set_title(f"{name}: heading error vs time")
+    axes[0].legend(loc="upper right", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
