@@ -132,7 +132,8 @@ def cmd_demo(args: argparse.Namespace) -> int:
     print(f"2/3 replaying {files.imu_csv} → {out / 'results.jsonl'}")
     replay(files.imu_csv, out / "results.jsonl", Config())
     print("3/3 comparing with the truth")
-    rows = [json.loads(line) for line in open(out / "results.jsonl")]
+    with open(out / "results.jsonl") as f:
+        rows = [json.loads(line) for line in f]
     with open(files.truth_csv) as f:
         _, consumed = read_header(f, str(files.truth_csv), TRUTH_COLUMNS, required=())
         truth = np.concatenate(list(read_rows(f, str(files.truth_csv), consumed + 1, TRUTH_COLUMNS)))

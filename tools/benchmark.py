@@ -71,7 +71,8 @@ def bench_latency(n_samples: int = 20000) -> dict[str, float]:
             "max_us": float(us.max()), "budget_200hz_us": 5000.0}
 
 
-def bench_stream_memory(hours: float = 24.0, rate_hz: float = 200.0, progress: bool = True) -> list[tuple[float, float]]:
+def bench_stream_memory(hours: float = 24.0, rate_hz: float = 200.0,
+                        progress: bool = True) -> list[tuple[float, float]]:
     """Stream ``hours`` of a static base (generated on the fly) through the pipeline; (hour, RSS MiB) samples."""
     site = Site(32.0 * DEG)
     dt = 1.0 / rate_hz

@@ -48,8 +48,8 @@ def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
 
 
 def run_once(scenario: Scenario, seed: int, config: Config) -> RunResult:
-    """Simulate one seed in memory and run the pipeline over it."""
-    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz)
+    """Simulate one seed in memory and run the pipeline over it (the scenario's datasheet grade, as its log states)."""
+    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet())
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                           seed):
@@ -178,8 +178,8 @@ def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tupl
     return "\n".join(lines), all_runs
 
 
-def plot_heading(name: str, runs: Sequence[RunResult], path: str | Path, others: dict[str, list[RunResult]] | None = None
-                 ) -> Path:
+def plot_heading(name: str, runs: Sequence[RunResult], path: str | Path,
+                 others: dict[str, list[RunResult]] | None = None) -> Path:
     """PNG: heading error of every seed vs time, the limit band and the ±2σ envelope."""
     import matplotlib
     matplotlib.use("Agg")

@@ -36,7 +36,7 @@ UG_TO_MS2 = 9.80665e-6
 def skew(v: np.ndarray) -> np.ndarray:
     """Cross-product matrix [v×], so that ``skew(a) @ b == cross(a, b)``. Shape (..., 3, 3)."""
     v = np.asarray(v, dtype=float)
-    S = np.zeros(v.shape[:-1] + (3, 3))
+    S = np.zeros((*v.shape[:-1], 3, 3))
     S[..., 0, 1], S[..., 0, 2] = -v[..., 2], v[..., 1]
     S[..., 1, 0], S[..., 1, 2] = v[..., 2], -v[..., 0]
     S[..., 2, 0], S[..., 2, 1] = -v[..., 1], v[..., 0]
@@ -115,7 +115,7 @@ def quat_from_dcm(C: np.ndarray) -> np.ndarray:
     C is slightly non-orthogonal.
     """
     C = np.asarray(C, dtype=float)
-    K = np.empty(C.shape[:-2] + (4, 4))
+    K = np.empty((*C.shape[:-2], 4, 4))
     K[..., 0, 0] = C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2]
     K[..., 1, 1] = C[..., 0, 0] - C[..., 1, 1] - C[..., 2, 2]
     K[..., 2, 2] = -C[..., 0, 0] + C[..., 1, 1] - C[..., 2, 2]

@@ -43,6 +43,11 @@ class SensorGrade:
         return cls(gyro_bias_deg_h * DH_TO_RS, gyro_arw_deg_rth * DRH_TO_RRS,
                    acc_bias_ug * UG_TO_MS2, acc_vrw_ug_rthz * UG_TO_MS2)
 
+    def datasheet(self) -> dict[str, float]:
+        """The figures in the IMU log's comment-key units (°/h, °/√h, µg, µg/√Hz)."""
+        return {"gyro_bias_deg_h": self.gyro_bias_rad_s / DH_TO_RS,
+                "gyro_arw_deg_rth": self.gyro_arw_rad_rts / DRH_TO_RRS, "acc_bias_ug": self.acc_bias_ms2 / UG_TO_MS2, "acc_vrw_ug_rthz": self.acc_vrw_ms_rts / UG_TO_MS2}
+
     def observation_variance(self, elapsed_s: np.ndarray, gravity: float,
                              disturbance_velocity_mps: float = 1e-3) -> np.ndarray:
         """μ(t) (rad², per axis) of b = α/|α| after ``elapsed_s`` of integration.

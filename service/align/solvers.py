@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import quat_normalize, skew
+from .conventions import quat_normalize
 
 SOLVERS = ("opreq", "request", "qmethod")
 
@@ -35,18 +35,16 @@ def delta_K(b: np.ndarray, r: np.ndarray) -> np.ndarray:
 
 
 def request_noise(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """R = E[V Vᵀ] (M, 4, 4) of the noise V of δK when E[δb δbᵀ] = μ (I - b bᵀ) (first order).
+    """R = E[V Vᵀ] (M, 4, 4) of the noise V of δK when E[δb δbᵀ] = μ (I - b bᵀ).
 
-    R11 = μ {[3 - (bᵀr)²] I + (bᵀr)(b rᵀ + r bᵀ) + [r×] b bᵀ [r×]ᵀ}, R12 = 0, R22 = 2μ.
+    V = δK(δb, r) is the Davenport matrix of the rank-one B = δb rᵀ, and such a matrix squares
+    to |δb|² |r|² I₄; hence R = μ tr(I - b bᵀ) |r|² I₄ = 2μ I₄ for unit vectors, exactly (a test
+    checks it against the sample covariance). The R11 block quoted in alignment-math.md §3.2
+    (after Choukroun) is not what this V gives; only tr R enters the gain, and there the two
+    differ by a near-constant factor that cancels in ρ*.
     """
-    c = np.einsum("mi,mi->m", b, r)
-    rx_b = np.einsum("mij,mj->mi", skew(r), b)
-    R = np.zeros((len(b), 4, 4))
-    R[:, :3, :3] = ((3.0 - c**2)[:, None, None] * np.eye(3)
-                    + c[:, None, None] * (b[:, :, None] * r[:, None, :] + r[:, :, None] * b[:, None, :])
-                    + rx_b[:, :, None] * rx_b[:, None, :])
-    R[:, 3, 3] = 2.0
-    return mu[:, None, None] * R
+    scale = np.asarray(mu, dtype=float) * (3.0 - np.einsum("mi,mi->m", b, b)) * np.einsum("mi,mi->m", r, r)
+    return scale[:, None, None] * np.eye(4)
 
 
 def quaternion_from_K(K: np.ndarray) -> np.ndarray:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 from sinsalign.protocol.imu_log import IMU_COLUMNS, TRUTH_COLUMNS, LogHeader, write_header, write_rows
-from sinsalign.service.align.conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
+from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
 
 from .imu import simulate
 from .scenarios import Scenario
@@ -28,14 +28,11 @@ def _vector(values: tuple[float, ...] | np.ndarray, scale: float) -> str:
 
 
 def log_keys(scenario: Scenario, seed: int) -> dict[str, object]:
-    g = scenario.grade
     e = scenario.errors
     return {
         "lat_deg": f"{scenario.site.lat / DEG:.12g}", "lon_deg": f"{scenario.site.lon / DEG:.12g}",
         "height_m": f"{scenario.site.height_m:.12g}", "rate_hz": f"{scenario.rate_hz:.12g}",
-        "gyro_bias_deg_h": f"{g.gyro_bias_rad_s / DH_TO_RS:.12g}",
-        "gyro_arw_deg_rth": f"{g.gyro_arw_rad_rts / DRH_TO_RRS:.12g}",
-        "acc_bias_ug": f"{g.acc_bias_ms2 / UG_TO_MS2:.12g}", "acc_vrw_ug_rthz": f"{g.acc_vrw_ms_rts / UG_TO_MS2:.12g}",
+        **{key: f"{value:.12g}" for key, value in scenario.grade.datasheet().items()},
         "sim_gyro_bias_deg_h": _vector(e.gyro_bias_rad_s, DH_TO_RS),
         "sim_acc_bias_ug": _vector(e.acc_bias_ms2, UG_TO_MS2),
         "scenario": scenario.name, "seed": seed, "source": "sinsalign sim",

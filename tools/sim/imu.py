@@ -58,7 +58,8 @@ class ImuChunk:
     C_b_n_true: np.ndarray   # (N, 3, 3) true attitude at t
 
 
-def true_increments(motion: AngularMotion, site: Site, t_start: np.ndarray, dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+def true_increments(motion: AngularMotion, site: Site, t_start: np.ndarray,
+                    dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Error-free Δθ (N, 3) rad and Δv (N, 3) m/s over [t_start, t_start + dt_s]."""
     x, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
     tau = t_start[:, None] + 0.5 * dt_s * (x + 1.0)[None, :]
@@ -77,7 +78,7 @@ def simulate(motion: AngularMotion, site: Site, errors: ImuErrors, rate_hz: floa
     Sample k (k = 1 … N) covers ((k-1)/rate, k/rate]; the noise stream depends on the seed only.
     """
     dt = 1.0 / rate_hz
-    n_total = int(round(duration_s * rate_hz))
+    n_total = round(duration_s * rate_hz)
     rng = np.random.default_rng(seed)
     gyro_std, acc_std = errors.increment_noise_std(dt)
     gyro_matrix = np.eye(3) + np.diag(errors.gyro_scale) + np.asarray(errors.gyro_misalignment)

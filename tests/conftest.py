@@ -1,0 +1,13 @@
+"""Shared fixtures: Monte Carlo runs are computed once per session and shared by the tests."""
+from __future__ import annotations
+
+import pytest
+from sinsalign.tools.evaluate import monte_carlo
+
+SEEDS = range(20)
+
+
+@pytest.fixture(scope="session")
+def swing_runs():
+    """The seed-000 swing scenario, 20 seeds, OPREQ with the default configuration."""
+    return monte_carlo("seed000-swing", SEEDS, progress=False)

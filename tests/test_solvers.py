@@ -1,0 +1,79 @@
+"""K-matrix solvers: exact recovery, the OPREQ noise matrix R, and the gain recursions."""
+import numpy as np
+import pytest
+from sinsalign.service.align.conventions import DEG, dcm_from_euler, dcm_from_quat, misalignment
+from sinsalign.service.align.solvers import RecursiveK, delta_K, request_noise
+
+
+def random_pairs(n: int, C_b_n: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    rng = np.random.default_rng(seed)
+    r = rng.standard_normal((n, 3))
+    r /= np.linalg.norm(r, axis=1, keepdims=True)
+    return r @ C_b_n, r          # b = C_n^b r
+
+
+@pytest.mark.parametrize("solver", ["opreq", "request", "qmethod"])
+def test_exact_pairs_give_the_attitude_far_from_north(solver):
+    C = dcm_from_euler(-130 * DEG, 4 * DEG, -7 * DEG)
+    b, r = random_pairs(50, C)
+    s = RecursiveK(solver, rho=0.1)
+    s.add(b[:20], r[:20], np.full(20, 1e-6))
+    s.add(b[20:], r[20:], np.full(30, 1e-6))
+    assert np.abs(misalignment(dcm_from_quat(s.quaternion()), C)).max() < 1e-12
+
+
+def test_noise_matrix_R_matches_the_sample_covariance_of_V():
+    """E[V Vᵀ] of V = δK(b + δb, r) - δK(b, r) for δb ~ N(0, μ (I - b bᵀ)): exact (V is linear in δb)."""
+    rng = np.random.default_rng(1)
+    r = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+    b = dcm_from_euler(0.4, 0.2, -0.3).T @ r
+    mu = 1e-8
+    P = np.eye(3) - np.outer(b, b)
+    db = rng.multivariate_normal(np.zeros(3), mu * P, size=200000)
+    V = delta_K(b + db, np.broadcast_to(r, db.shape)) - delta_K(b[None], r[None])
+    sample = np.einsum("kij,klj->il", V, V) / len(V)
+    R = request_noise(b[None], r[None], np.array([mu]))[0]
+    np.testing.assert_allclose(sample, R, atol=0.01 * np.abs(R).max())
+
+
+def test_opreq_gain_is_inverse_variance_weighting():
+    """With m = δm = 1, ρ* = P/(P + R) makes K the inverse-trace-R weighted mean of the δK."""
+    C = dcm_from_euler(0.3, 0.1, 0.2)
+    b, r = random_pairs(6, C, seed=2)
+    mu = np.array([4.0, 1.0, 2.0, 0.5, 3.0, 1.5]) * 1e-6
+    s = RecursiveK("opreq")
+    s.add(b, r, mu)
+    trace_R = np.trace(request_noise(b, r, mu), axis1=1, axis2=2)
+    w = (1 / trace_R) / (1 / trace_R).sum()
+    np.testing.assert_allclose(s.K, np.tensordot(w, delta_K(b, r), axes=1), atol=1e-12)
+    assert s.trace_P == pytest.approx(1 / (1 / trace_R).sum())
+
+
+def test_qmethod_is_the_equally_weighted_mean_and_request_fades():
+    b, r = random_pairs(10, np.eye(3), seed=4)
+    q = RecursiveK("qmethod")
+    q.add(b, r, np.ones(10))
+    np.testing.assert_allclose(q.K, delta_K(b, r).mean(axis=0), atol=1e-14)
+    assert q.rho == pytest.approx(1 / 10)
+    f = RecursiveK("request", rho=0.5)
+    f.add(b, r, np.ones(10))
+    weights = np.array([0.5 ** (9 - k) * (0.5 if k else 1.0) for k in range(10)])
+    np.testing.assert_allclose(f.K, np.tensordot(weights, delta_K(b, r), axes=1), atol=1e-14)
+
+
+def test_blocks_of_observations_equal_one_at_a_time():
+    b, r = random_pairs(12, dcm_from_euler(1.0, 0.1, -0.1), seed=5)
+    mu = np.linspace(1e-6, 1e-7, 12)
+    whole, single = RecursiveK(), RecursiveK()
+    whole.add(b, r, mu)
+    for k in range(12):
+        single.add(b[k:k + 1], r[k:k + 1], mu[k:k + 1])
+    np.testing.assert_allclose(whole.K, single.K, atol=1e-15)
+    assert whole.trace_P == pytest.approx(single.trace_P)
+
+
+def test_bad_solver_settings_are_refused():
+    with pytest.raises(ValueError, match="unknown solver"):
+        RecursiveK("svd")
+    with pytest.raises(ValueError, match="rho"):
+        RecursiveK("request", rho=0.0)
