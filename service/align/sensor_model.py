@@ -46,7 +46,9 @@ class SensorGrade:
     def datasheet(self) -> dict[str, float]:
         """The figures in the IMU log's comment-key units (°/h, °/√h, µg, µg/√Hz)."""
         return {"gyro_bias_deg_h": self.gyro_bias_rad_s / DH_TO_RS,
-                "gyro_arw_deg_rth": self.gyro_arw_rad_rts / DRH_TO_RRS, "acc_bias_ug": self.acc_bias_ms2 / UG_TO_MS2, "acc_vrw_ug_rthz": self.acc_vrw_ms_rts / UG_TO_MS2}
+                "gyro_arw_deg_rth": self.gyro_arw_rad_rts / DRH_TO_RRS,
+                "acc_bias_ug": self.acc_bias_ms2 / UG_TO_MS2,
+                "acc_vrw_ug_rthz": self.acc_vrw_ms_rts / UG_TO_MS2}
 
     def observation_variance(self, elapsed_s: np.ndarray, gravity: float,
                              disturbance_velocity_mps: float = 1e-3) -> np.ndarray:
