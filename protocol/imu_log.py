@@ -150,8 +150,8 @@ def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ..
         if len(times) and not (steps > 0).all():
             bad = int(np.flatnonzero(steps <= 0)[0])
             bad_line = line_no + [i for i, raw in enumerate(lines) if raw.strip()][bad]
-            raise LogFormatError(path, bad_line, "t", f"time does not increase ({times[bad]!r} after "
-                                 f"{(times[bad - 1] if bad else t_last)!r})")
+            raise LogFormatError(path, bad_line, "t", f"time does not increase ({float(times[bad])!r} after "
+                                 f"{float(times[bad - 1] if bad else t_last)!r})")
         if len(times):
             t_last = float(times[-1])
         line_no += len(lines)

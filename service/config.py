@@ -5,6 +5,7 @@ start with a message that names the key. Units are in the key names.
 """
 from __future__ import annotations
 
+import math
 import tomllib
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
@@ -78,9 +79,14 @@ def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
             raise ConfigError(f"{section}.{key}: unknown key (known: {', '.join(known)})")
         default = getattr(section_obj, key)
         if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+            try:
+                value = float(value)
+            except OverflowError:
+                raise ConfigError(f"{section}.{key}: {value} is out of range") from None
         if type(value) is not type(default):
             raise ConfigError(f"{section}.{key}: expected {type(default).__name__}, got {value!r}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ConfigError(f"{section}.{key}: must be a finite number, got {value!r}")
         updates[key] = value
     return replace(section_obj, **updates)
 
@@ -106,7 +112,7 @@ def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None
         try:
             with open(path, "rb") as stream:
                 data = tomllib.load(stream)
-        except tomllib.TOMLDecodeError as exc:
+        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
             raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
         except OSError as exc:
             raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc

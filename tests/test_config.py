@@ -1,0 +1,268 @@
+"""Configuration: defaults < TOML file < overrides; every bad key stops the start with the key named."""
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from sinsalign.service.config import (
+    AlignmentConfig,
+    Config,
+    ConfigError,
+    OutputConfig,
+    SensorConfig,
+    config_from_mapping,
+    load_config,
+)
+
+from sinsalign.cli import main
+
+GOOD_TOML = """\
+# a comment
+[sensor]
+acc_bias_ug = 100.0
+gyro_arw_deg_rth = 0.002
+
+[alignment]
+solver = "request"
+request_rho = 0.05
+obs_interval_s = 0.2
+
+[output]
+period_s = 0.5
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "sinsalign.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def config_error(data: dict[str, Any]) -> str:
+    with pytest.raises(ConfigError) as info:
+        config_from_mapping(data)
+    return str(info.value)
+
+
+# --- loading and layering ---------------------------------------------------------------------------------------------
+
+
+def test_defaults() -> None:
+    config = load_config()
+    assert config == Config()
+    assert config == config_from_mapping({})
+    assert config.alignment == AlignmentConfig()
+    assert (config.alignment.solver, config.alignment.request_rho, config.alignment.obs_interval_s) == (
+        "opreq", 0.01, 0.1)
+    assert config.output.period_s == 1.0
+    assert config.sensor == SensorConfig(0.01, 0.001, 50.0, 5.0)
+    assert config.as_dict()["alignment"]["solver"] == "opreq"
+
+
+def test_empty_file_gives_defaults(tmp_path: Path) -> None:
+    assert load_config(write(tmp_path, "")) == Config()
+
+
+def test_file_overrides_defaults(tmp_path: Path) -> None:
+    config = load_config(write(tmp_path, GOOD_TOML))
+    assert config.sensor == SensorConfig(gyro_bias_deg_h=0.01, gyro_arw_deg_rth=0.002, acc_bias_ug=100.0,
+                                         acc_vrw_ug_rthz=5.0)
+    assert config.alignment == AlignmentConfig(solver="request", request_rho=0.05, obs_interval_s=0.2)
+    assert config.output == OutputConfig(period_s=0.5)
+
+
+def test_file_path_may_be_str(tmp_path: Path) -> None:
+    assert load_config(str(write(tmp_path, GOOD_TOML))).output.period_s == 0.5
+
+
+def test_overrides_override_file(tmp_path: Path) -> None:
+    overrides = {"alignment": {"request_rho": 0.5}, "output": {"period_s": 2.0}}
+    config = load_config(write(tmp_path, GOOD_TOML), overrides)
+    assert config.alignment.request_rho == 0.5
+    assert config.output.period_s == 2.0
+    # keys the overrides leave alone keep the file's values, not the defaults
+    assert config.alignment.solver == "request" and config.alignment.obs_interval_s == 0.2
+    assert config.sensor.acc_bias_ug == 100.0
+
+
+def test_overrides_without_file() -> None:
+    config = load_config(None, {"alignment": {"solver": "qmethod"}})
+    assert config.alignment == AlignmentConfig(solver="qmethod")
+
+
+def test_config_from_mapping_applies_onto_base() -> None:
+    base = config_from_mapping({"output": {"period_s": 0.25}})
+    config = config_from_mapping({"alignment": {"obs_interval_s": 0.5}}, base)
+    assert config.output.period_s == 0.25 and config.alignment.obs_interval_s == 0.5
+
+
+@pytest.mark.parametrize(("section", "key", "value"), [("alignment", "request_rho", 1), ("output", "period_s", 3),
+                                                        ("sensor", "acc_bias_ug", 0)])
+def test_int_for_float_key(tmp_path: Path, section: str, key: str, value: int) -> None:
+    for config in (load_config(write(tmp_path, f"[{section}]\n{key} = {value}\n")),
+                   config_from_mapping({section: {key: value}})):
+        got = getattr(getattr(config, section), key)
+        assert type(got) is float and got == value
+
+
+@pytest.mark.parametrize(("section", "key", "value"), [
+    ("alignment", "request_rho", 1.0), ("alignment", "disturbance_velocity_mps", 0.0),
+    ("sensor", "gyro_bias_deg_h", 0.0), ("alignment", "obs_interval_s", 1e-9), ("alignment", "solver", "request"),
+])
+def test_boundary_values_accepted(section: str, key: str, value: object) -> None:
+    assert getattr(getattr(config_from_mapping({section: {key: value}}), section), key) == value
+
+
+# --- bad keys, types and ranges -----------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("data", "key"), [
+    ({"sensors": {}}, "sensors"),
+    ({"alignment": {"rho": 0.1}}, "alignment.rho"),
+    ({"output": {"period": 1.0}}, "output.period"),
+    ({"sensor": {"acc_bias_ug": 50.0, "gyro_bias": 1.0}}, "sensor.gyro_bias"),
+    ({"alignment": 0.1}, "alignment"),
+    ({"alignment": "opreq"}, "alignment"),
+])
+def test_unknown_section_or_key(data: dict[str, Any], key: str) -> None:
+    message = config_error(data)
+    assert message.startswith(f"{key}:")
+
+
+@pytest.mark.parametrize(("section", "key", "value"), [
+    ("alignment", "obs_interval_s", "0.1"),
+    ("alignment", "request_rho", True),
+    ("alignment", "request_rho", False),
+    ("output", "period_s", [1.0]),
+    ("output", "period_s", {"value": 1.0}),
+    ("sensor", "acc_bias_ug", None),
+    ("alignment", "solver", 1),
+    ("alignment", "solver", ["opreq"]),
+])
+def test_wrong_type(section: str, key: str, value: object) -> None:
+    message = config_error({section: {key: value}})
+    assert f"{section}.{key}" in message
+    assert "expected" in message
+
+
+@pytest.mark.parametrize(("section", "key", "value"), [
+    ("alignment", "obs_interval_s", 0.0),
+    ("alignment", "obs_interval_s", -0.1),
+    ("alignment", "obs_interval_s", -1),
+    ("alignment", "obs_interval_s", math.nan),
+    ("alignment", "request_rho", 1.0000001),
+    ("alignment", "request_rho", 2),
+    ("alignment", "request_rho", 0.0),
+    ("alignment", "request_rho", -0.5),
+    ("alignment", "disturbance_velocity_mps", -1e-6),
+    ("alignment", "converged_heading_sigma_deg", 0.0),
+    ("output", "period_s", 0.0),
+    ("output", "period_s", -1.0),
+    ("alignment", "solver", "OPREQ"),
+    ("alignment", "solver", "kalman"),
+    ("alignment", "solver", ""),
+    *[("sensor", f.name, -1.0) for f in fields(SensorConfig)],
+    *[("sensor", f.name, math.nan) for f in fields(SensorConfig)],
+])
+def test_out_of_range(tmp_path: Path, section: str, key: str, value: object) -> None:
+    assert config_error({section: {key: value}}).startswith(f"{section}.{key}:")
+    # the same from a file and from overrides on top of a good file
+    literal = {str: f'"{value}"', float: "nan" if isinstance(value, float) and math.isnan(value) else repr(value),
+               int: repr(value)}[type(value)]
+    with pytest.raises(ConfigError, match=rf"^{section}\.{key}:"):
+        load_config(write(tmp_path, f"[{section}]\n{key} = {literal}\n"))
+    with pytest.raises(ConfigError, match=rf"^{section}\.{key}:"):
+        load_config(write(tmp_path, GOOD_TOML, "good.toml"), {section: {key: value}})
+
+
+def test_bad_key_in_file_is_named(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"^alignment\.obs_interval:"):
+        load_config(write(tmp_path, "[alignment]\nobs_interval = 0.1\n"))
+    with pytest.raises(ConfigError, match=r"^alignment\.obs_interval_s: expected float"):
+        load_config(write(tmp_path, '[alignment]\nobs_interval_s = "fast"\n'))
+
+
+def test_top_level_key_outside_a_table(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match=r"^period_s:"):
+        load_config(write(tmp_path, "period_s = 1.0\n"))
+
+
+@pytest.mark.parametrize(("section", "key"), [("alignment", "obs_interval_s"), ("output", "period_s")])
+def test_infinite_value_rejected(tmp_path: Path, section: str, key: str) -> None:
+    with pytest.raises(ConfigError, match=rf"^{section}\.{key}:"):
+        load_config(write(tmp_path, f"[{section}]\n{key} = inf\n"))
+
+
+def test_huge_int_for_float_key() -> None:
+    with pytest.raises(ConfigError, match=r"alignment\.request_rho"):
+        config_from_mapping({"alignment": {"request_rho": 10**400}})
+
+
+# --- file problems ----------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("text", ["[alignment\nsolver = 'opreq'\n", "[alignment]\nsolver = opreq\n",
+                                  "[output]\nperiod_s = 1.0\nperiod_s = 2.0\n", "= 1\n"])
+def test_invalid_toml_names_file(tmp_path: Path, text: str) -> None:
+    path = write(tmp_path, text, "broken.toml")
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert str(info.value).startswith(f"{path}:")
+    assert "not valid TOML" in str(info.value)
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    path = tmp_path / "absent.toml"
+    with pytest.raises(ConfigError) as info:
+        load_config(path)
+    assert str(path) in str(info.value) and "cannot read" in str(info.value)
+
+
+def test_directory_instead_of_file(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="cannot read"):
+        load_config(tmp_path)
+
+
+def test_non_utf8_file_names_file(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(b'[alignment]\nsolver = "r\xe9quest"\n')
+    with pytest.raises(ConfigError, match=r"latin1\.toml"):
+        load_config(path)
+
+
+def test_cli_reports_config_error(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    config = write(tmp_path, "[alignment]\nobs_interval_s = -1.0\n")
+    code = main(["replay", str(tmp_path / "imu.csv"), "--out", str(tmp_path / "r.jsonl"), "--no-progress",
+                 "--config", str(config)])
+    assert code == 2
+    assert "alignment.obs_interval_s" in capsys.readouterr().err
+
+
+# --- fuzzing ----------------------------------------------------------------------------------------------------------
+
+SECTION_NAMES = [f.name for f in fields(Config)]
+KEY_NAMES = [f.name for cls in (SensorConfig, AlignmentConfig, OutputConfig) for f in fields(cls)]
+# TOML integers are 64-bit; bigger ints are covered by test_huge_int_for_float_key
+SCALARS = st.one_of(st.integers(-2**63, 2**63 - 1), st.floats(), st.floats(0.0, 2.0), st.text(max_size=10),
+                    st.booleans(), st.sampled_from(["opreq", "request", "qmethod"]))
+VALUES = st.recursive(SCALARS, lambda inner: st.dictionaries(st.text(max_size=8) | st.sampled_from(KEY_NAMES), inner,
+                                                               max_size=4), max_leaves=12)
+TABLES = st.dictionaries(st.sampled_from(KEY_NAMES) | st.text(max_size=8), VALUES, max_size=5)
+MAPPINGS = st.dictionaries(st.sampled_from(SECTION_NAMES) | st.text(max_size=8), TABLES | VALUES, max_size=4)
+
+
+@settings(max_examples=200, deadline=None)
+@given(data=MAPPINGS)
+def test_fuzz_config_from_mapping(data: dict[str, Any]) -> None:
+    try:
+        config = config_from_mapping(data)
+    except ConfigError as exc:
+        assert str(exc)
+    else:
+        assert isinstance(config, Config)
+        assert set(data) <= set(SECTION_NAMES)
