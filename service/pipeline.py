@@ -15,7 +15,7 @@ from .align.earth import Site
 from .align.observations import FixedSiteSource
 from .align.sensor_model import SensorGrade
 from .align.solvers import RecursiveK
-from .config import Config
+from .config import Config, ConfigError
 
 
 def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> SensorGrade:
@@ -52,6 +52,9 @@ class AlignmentPipeline:
         a = config.alignment
         self.config = config
         self.sample_period_s = 1.0 / rate_hz
+        if a.obs_interval_s < self.sample_period_s:
+            raise ConfigError(f"alignment.obs_interval_s: {a.obs_interval_s} s is shorter than the IMU sample "
+                              f"period {self.sample_period_s:g} s ({rate_hz:g} Hz)")
         self.period_s = config.output.period_s
         self.coarse = InertialCoarseAlignment(
             FixedSiteSource(site), grade_from(config, datasheet), RecursiveK(a.solver, a.request_rho),

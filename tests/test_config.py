@@ -265,3 +265,18 @@ def test_fuzz_config_from_mapping(data: dict[str, Any]) -> None:
     else:
         assert isinstance(config, Config)
         assert set(data) <= set(SECTION_NAMES)
+
+
+def test_observation_interval_shorter_than_a_sample_is_a_config_error(capsys: pytest.CaptureFixture[str],
+                                                                       tmp_path: Path) -> None:
+    from dataclasses import replace as _replace
+
+    from sinsalign.tools.sim.files import write_simulation
+    from sinsalign.tools.sim.scenarios import get_scenario
+
+    from sinsalign.cli import main
+    files = write_simulation(_replace(get_scenario("static"), duration_s=2.0), 0, tmp_path)
+    code = main(["replay", str(files.imu_csv), "--out", str(tmp_path / "r.jsonl"), "--obs-interval", "0.001",
+                 "--no-progress"])
+    assert code == 2
+    assert "alignment.obs_interval_s" in capsys.readouterr().err

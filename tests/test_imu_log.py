@@ -294,7 +294,7 @@ def outcome(path: Path, chunk_rows: int) -> object:
 @pytest.mark.xfail(strict=True, reason="a '#' line among the data rows is silently dropped when the chunk also holds "
                    "rows, but a chunk holding only '#' lines fails ('expected 7 values, found 1'): the outcome "
                    "depends on chunk_rows")
-@pytest.mark.filterwarnings("ignore:loadtxt")
+@pytest.mark.filterwarnings("ignore:loadtxt:UserWarning")
 def test_comment_line_among_rows_same_outcome_for_every_chunk_size(tmp_path: Path) -> None:
     lines = good_lines(12)
     lines.insert(3, "# note")  # line 9
@@ -457,6 +457,7 @@ ROWISH = st.lists(FLOAT_TEXT, min_size=5, max_size=9).map(",".join)
 DATA_LINE = st.one_of(st.text(max_size=40), NUMBERISH, ROWISH, st.just(""))
 
 
+@pytest.mark.filterwarnings("ignore:loadtxt:UserWarning")
 @FUZZ
 @given(lines=st.lists(DATA_LINE, max_size=25), chunk_rows=st.sampled_from([1, 3, 20000]))
 def test_fuzz_text_after_valid_header(tmp_path: Path, lines: list[str], chunk_rows: int) -> None:
@@ -467,6 +468,7 @@ def test_fuzz_text_after_valid_header(tmp_path: Path, lines: list[str], chunk_ro
     parse_or_format_error(path, chunk_rows)
 
 
+@pytest.mark.filterwarnings("ignore:loadtxt:UserWarning")
 @FUZZ
 @given(data=st.binary(max_size=400), with_header=st.booleans(), chunk_rows=st.sampled_from([1, 3, 20000]))
 def test_fuzz_arbitrary_bytes(tmp_path: Path, data: bytes, with_header: bool, chunk_rows: int) -> None:
