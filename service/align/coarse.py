@@ -12,8 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .conventions import dcm_from_quat, quat_from_dcm
-from .earth import Site
-from .observations import FixedSiteSource, ObservationSource
+from .observations import ObservationSource
 from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
 from .solvers import RecursiveK
 from .strapdown import InertialIntegrator
@@ -121,9 +120,3 @@ class InertialCoarseAlignment:
                                             n_obs=self.solver.n_obs)
         return self._cached
 
-
-def fixed_site_alignment(site: Site, grade: SensorGrade, sample_period_s: float, solver: str = "opreq",
-                         rho: float = 0.01, obs_interval_s: float = 0.1) -> InertialCoarseAlignment:
-    """Coarse alignment of a base fixed in position with the named solver."""
-    return InertialCoarseAlignment(FixedSiteSource(site), grade, RecursiveK(solver, rho), sample_period_s,
-                                   obs_interval_s)

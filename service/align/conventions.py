@@ -53,12 +53,6 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
                      pw * qz + px * qy - py * qx + pz * qw), axis=-1)
 
 
-def quat_conjugate(q: np.ndarray) -> np.ndarray:
-    """Conjugate (inverse of a unit quaternion)."""
-    q = np.asarray(q, dtype=float)
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
 def quat_normalize(q: np.ndarray) -> np.ndarray:
     """Unit quaternion with a non-negative scalar part (one of the two signs, chosen fixed)."""
     q = np.asarray(q, dtype=float)
