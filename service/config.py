@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from .align.compass import GainSchedule
 from .align.solvers import SOLVERS
 
 
@@ -40,6 +41,30 @@ class AlignmentConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class FineConfig:
+    """Compass fine alignment (seed 001): hand-over, gain schedule, stored-data passes.
+
+    The schedule gives loop bandwidths σ (rad/s) at loop times (s since the hand-over), geometric
+    in between; azimuth σ 0 = levelling only. Defaults suit navigation-grade sensors.
+    """
+
+    enabled: bool = True
+    handover: str = "sigma"
+    handover_sigma_deg: float = 0.15
+    handover_time_s: float = 60.0
+    control_interval_s: float = 0.1
+    schedule_time_s: tuple[float, ...] = (0.0, 30.0, 31.0, 150.0, 300.0, 450.0)
+    level_sigma: tuple[float, ...] = (0.5, 0.5, 0.05, 0.04, 0.03, 0.02)
+    azimuth_sigma: tuple[float, ...] = (0.0, 0.0, 0.05, 0.02, 0.01, 0.006)
+    stored_data_s: float = 80.0
+    stored_pairs: int = 3
+    live_pass_steps: int = 40
+
+
+HANDOVERS = ("sigma", "time")
+
+
+@dataclass(frozen=True, slots=True)
 class OutputConfig:
     period_s: float = 1.0
 
@@ -48,6 +73,7 @@ class OutputConfig:
 class Config:
     sensor: SensorConfig = field(default_factory=SensorConfig)
     alignment: AlignmentConfig = field(default_factory=AlignmentConfig)
+    fine: FineConfig = field(default_factory=FineConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def as_dict(self) -> dict[str, Any]:
@@ -55,15 +81,27 @@ class Config:
 
 
 def _check(config: Config) -> Config:
-    a, s, o = config.alignment, config.sensor, config.output
+    a, s, o, f = config.alignment, config.sensor, config.output, config.fine
     if a.solver not in SOLVERS:
         raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(SOLVERS)}")
+    if f.handover not in HANDOVERS:
+        raise ConfigError(f"fine.handover: {f.handover!r} is not one of {', '.join(HANDOVERS)}")
+    try:
+        GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma)
+    except ValueError as exc:
+        raise ConfigError(f"fine.{exc}") from None
     checks = [
         ("alignment.request_rho", 0.0 < a.request_rho <= 1.0, "must be in (0, 1]"),
         ("alignment.obs_interval_s", a.obs_interval_s > 0.0, "must be > 0"),
         ("alignment.disturbance_velocity_mps", a.disturbance_velocity_mps >= 0.0, "must be ≥ 0"),
         ("alignment.converged_heading_sigma_deg", a.converged_heading_sigma_deg > 0.0, "must be > 0"),
         ("output.period_s", o.period_s > 0.0, "must be > 0"),
+        ("fine.handover_sigma_deg", f.handover_sigma_deg > 0.0, "must be > 0"),
+        ("fine.handover_time_s", f.handover_time_s >= 0.0, "must be ≥ 0"),
+        ("fine.control_interval_s", f.control_interval_s > 0.0, "must be > 0"),
+        ("fine.stored_data_s", f.stored_data_s >= 0.0, "must be ≥ 0 (0 turns the stored-data passes off)"),
+        ("fine.stored_pairs", 0 <= f.stored_pairs <= 100, "must be in 0..100"),
+        ("fine.live_pass_steps", f.live_pass_steps >= 1, "must be ≥ 1"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
     for key, ok, rule in checks:
         if not ok:
@@ -83,12 +121,27 @@ def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
                 value = float(value)
             except OverflowError:
                 raise ConfigError(f"{section}.{key}: {value} is out of range") from None
+        if isinstance(default, tuple):
+            value = _number_list(f"{section}.{key}", value)
         if type(value) is not type(default):
             raise ConfigError(f"{section}.{key}: expected {type(default).__name__}, got {value!r}")
         if isinstance(value, float) and not math.isfinite(value):
             raise ConfigError(f"{section}.{key}: must be a finite number, got {value!r}")
         updates[key] = value
     return replace(section_obj, **updates)
+
+
+def _number_list(key: str, value: Any) -> tuple[float, ...]:
+    if not isinstance(value, list | tuple) or not all(
+            isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        raise ConfigError(f"{key}: expected a list of numbers, got {value!r}")
+    try:
+        numbers = tuple(float(v) for v in value)
+    except OverflowError:
+        raise ConfigError(f"{key}: a number is out of range") from None
+    if not all(math.isfinite(v) for v in numbers):
+        raise ConfigError(f"{key}: must hold finite numbers, got {value!r}")
+    return numbers
 
 
 def config_from_mapping(data: dict[str, Any], base: Config | None = None) -> Config:

@@ -10,12 +10,18 @@ import numpy as np
 
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
-from .align.conventions import DEG, dcm_from_quat, euler_from_dcm
+from .align.compass import GainSchedule
+from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm
 from .align.earth import Site
+from .align.fine import FineAlignment
 from .align.observations import FixedSiteSource
-from .align.sensor_model import SensorGrade
+from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, bias_limit_rad
 from .align.solvers import RecursiveK
 from .config import Config, ConfigError
+
+INITIAL_TILT_SIGMA_DEG = 0.1
+INITIAL_HEADING_SIGMA_DEG = 1.5
+"""1-sigma errors assumed for an attitude given from outside (compass alone, seed 001's start)."""
 
 
 def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> SensorGrade:
@@ -38,7 +44,13 @@ def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, thresh
 
 
 class AlignmentPipeline:
-    """Coarse alignment of a base fixed in position, emitting records at the output epochs.
+    """Coarse then fine alignment of a base fixed in position, emitting records at the output epochs.
+
+    Samples are processed in canonical blocks of ``block_samples`` (one compass control step),
+    counted from the first sample; an incomplete block waits for its last sample. Every block
+    therefore sees the same arithmetic whether the samples come one at a time (daemon) or in
+    large chunks (replay), and the results are bit-identical. A record is emitted when the block
+    holding its epoch is complete (a latency of at most one control interval).
 
     Parameters
     ----------
@@ -46,40 +58,121 @@ class AlignmentPipeline:
     site : position of the IMU.
     rate_hz : nominal IMU sample rate.
     datasheet : the log's datasheet keys, if any (override ``config.sensor``).
+    live : slice the stored-data passes into ``fine.live_pass_steps`` steps per block instead of
+        running them at once (offline).
+    initial_q_b_n : start the compass loops at once from this attitude at the first sample
+        (compass alone, for evaluation), skipping the coarse stage.
     """
 
-    def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None) -> None:
-        a = config.alignment
+    def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
+                 live: bool = False, initial_q_b_n: np.ndarray | None = None) -> None:
+        a, f = config.alignment, config.fine
         self.config = config
         self.sample_period_s = 1.0 / rate_hz
         if a.obs_interval_s < self.sample_period_s:
             raise ConfigError(f"alignment.obs_interval_s: {a.obs_interval_s} s is shorter than the IMU sample "
                               f"period {self.sample_period_s:g} s ({rate_hz:g} Hz)")
         self.period_s = config.output.period_s
+        grade = grade_from(config, datasheet)
         self.coarse = InertialCoarseAlignment(
-            FixedSiteSource(site), grade_from(config, datasheet), RecursiveK(a.solver, a.request_rho),
+            FixedSiteSource(site), grade, RecursiveK(a.solver, a.request_rho),
             self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+        self.block_samples = max(1, round(f.control_interval_s * rate_hz))
+        self.fine: FineAlignment | None = None
+        if f.enabled or initial_q_b_n is not None:
+            self.fine = FineAlignment(site, grade, GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
+                                      self.block_samples * self.sample_period_s, f.stored_data_s, f.stored_pairs,
+                                      f.live_pass_steps if live else None)
+        self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
+        self._pending = np.empty((self.block_samples, 7))
+        self._n_pending = 0
         self._epoch_count: int | None = None
+        self._alpha_step = np.zeros(3)
+        self._t_step: float | None = None
 
     def _epoch_counts(self, t: np.ndarray) -> np.ndarray:
         # the sample within half a period of k·P carries epoch k
         return np.floor((t + 0.5 * self.sample_period_s) / self.period_s).astype(np.int64)
 
     def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> list[ResultRecord]:
-        """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s); return the records due in them."""
+        """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s); return the records completed by them."""
+        t = np.asarray(t, dtype=float).reshape(-1)
         if len(t) == 0:
             return []
-        counts = self._epoch_counts(np.asarray(t, dtype=float))
+        samples = np.column_stack((t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))))
         if self._epoch_count is None:
             self._epoch_count = int(self._epoch_counts(np.asarray([t[0] - self.sample_period_s]))[0])
-        records = []
+            self._t_step = float(t[0]) - self.sample_period_s
+        records: list[ResultRecord] = []
+        M, i = self.block_samples, 0
+        if self._n_pending:
+            take = min(M - self._n_pending, len(samples))
+            self._pending[self._n_pending:self._n_pending + take] = samples[:take]
+            self._n_pending += take
+            i = take
+            if self._n_pending == M:
+                self._process_block(self._pending, records)
+                self._n_pending = 0
+        while len(samples) - i >= M:
+            self._process_block(samples[i:i + M], records)
+            i += M
+        rest = len(samples) - i
+        if rest:
+            self._pending[:rest] = samples[i:]
+            self._n_pending = rest
+        return records
+
+    def _process_block(self, block: np.ndarray, records: list[ResultRecord]) -> None:
+        t, dtheta, dv = block[:, 0], block[:, 1:4], block[:, 4:7]
+        counts = self._epoch_counts(t)
         start = 0
         for end in np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0):
-            self.coarse.update_block(t[start:end + 1], dtheta[start:end + 1], dv[start:end + 1])
+            q_b_b0, _ = self.coarse.update_block(t[start:end + 1], dtheta[start:end + 1], dv[start:end + 1])
             start = end + 1
-            t_epoch = round(float(counts[end]) * self.period_s, 9)
-            records.append(result_record(self.coarse.solution, t_epoch, "coarse",
-                                         self.config.alignment.converged_heading_sigma_deg))
-        self.coarse.update_block(t[start:], dtheta[start:], dv[start:])
+            records.append(self._record(round(float(counts[end]) * self.period_s, 9), float(t[end]), q_b_b0[-1]))
+        if start < len(t):
+            self.coarse.update_block(t[start:], dtheta[start:], dv[start:])
         self._epoch_count = int(counts[-1])
-        return records
+        self._control_step(float(t[-1]))
+
+    def _control_step(self, t_end: float) -> None:
+        alpha = self.coarse.integrator.alpha_b0
+        dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
+        self._alpha_step, self._t_step = alpha.copy(), t_end
+        if self.fine is None:
+            return
+        if not self.fine.active and self._initial_C_b_n is not None:
+            self.fine.start(self._initial_C_b_n, np.eye(3), *self._initial_sigma())
+        self.fine.feed(dalpha, dt_s)
+        if not self.fine.active and self._handover_due():
+            solution = self.coarse.solution
+            noise = self._noise_part(solution)
+            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(self.coarse.integrator.q_b_b0), *noise)
+
+    def _handover_due(self) -> bool:
+        f = self.config.fine
+        if f.handover == "time":
+            return self.coarse.elapsed_s >= f.handover_time_s
+        return self.coarse.solver.n_obs > 0 and self.coarse.solution.heading_sigma_deg <= f.handover_sigma_deg
+
+    def _noise_part(self, solution: AttitudeSolution) -> tuple[float, float]:
+        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit."""
+        grade, site = self.coarse.grade, self.coarse.source.site
+        bias_heading, bias_level = bias_limit_rad(grade, site.lat, site.gravity)
+        tilt2 = max((solution.level_sigma_deg * DEG) ** 2 - bias_level**2, 0.0)
+        heading2 = max((solution.heading_sigma_deg * DEG) ** 2 - bias_heading**2, 0.0)
+        return float(np.sqrt(tilt2 / ESTIMATOR_EFFICIENCY)), float(np.sqrt(heading2 / ESTIMATOR_EFFICIENCY))
+
+    def _initial_sigma(self) -> tuple[float, float]:
+        return INITIAL_TILT_SIGMA_DEG * DEG, INITIAL_HEADING_SIGMA_DEG * DEG
+
+    def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray) -> ResultRecord:
+        threshold = self.config.alignment.converged_heading_sigma_deg
+        if self.fine is None or not self.fine.active:
+            return result_record(self.coarse.solution, t_epoch, "coarse", threshold)
+        C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
+        sigma = self.fine.sigma
+        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
+                                    self.coarse.solver.rho, self.coarse.solver.trace_P, self.coarse.solver.n_obs)
+        aligned = self.fine.schedule_complete and sigma.heading_deg <= threshold
+        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)

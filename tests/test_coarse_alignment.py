@@ -8,8 +8,8 @@ import pytest
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2
 from sinsalign.service.align.earth import OMEGA_IE
 from sinsalign.service.align.sensor_model import SensorGrade, inertial_alignment_sigma, physical_limit
-from sinsalign.service.config import Config
-from sinsalign.tools.evaluate import honesty, monte_carlo, run_once, settling_time_s, window_stats
+from sinsalign.service.config import config_from_mapping
+from sinsalign.tools.evaluate import COARSE_ONLY, honesty, monte_carlo, run_once, settling_time_s, window_stats
 from sinsalign.tools.sim.scenarios import get_scenario
 
 SEEDS = range(20)
@@ -32,7 +32,7 @@ def test_sigma_is_unknown_before_time_and_shrinks_to_the_bias_floor():
 
 
 def test_noise_free_swing_is_exact():
-    run = run_once(get_scenario("seed000-swing-ideal"), 0, Config())
+    run = run_once(get_scenario("seed000-swing-ideal"), 0, config_from_mapping(COARSE_ONLY))
     after = run.t >= 30
     assert np.abs(run.phi_deg[after, 2]).max() < 0.001
     assert np.abs(run.phi_deg[after, :2]).max() < 0.0005
@@ -56,14 +56,14 @@ def test_heading_sigma_is_honest(swing_runs):
 
 
 def test_static_base_600_s():
-    runs = monte_carlo("static", SEEDS, progress=False)
+    runs = monte_carlo("static", SEEDS, COARSE_ONLY, progress=False)
     s = window_stats(runs, (550, 600))
     assert abs(s.heading_mean) <= 0.005
     assert s.heading_seed_std <= 0.002
 
 
 def test_turntable_with_a_noisy_gyro():
-    runs = monte_carlo("seed000-turntable", SEEDS, progress=False)
+    runs = monte_carlo("seed000-turntable", SEEDS, COARSE_ONLY, progress=False)
     s = window_stats(runs, (201, 300))
     assert abs(s.heading_mean) <= 0.05
     # issue 3 asks ≤ 0.12° (floor ≈ 0.1°); measured 0.121° on these seeds: a known gap, guarded here
@@ -72,9 +72,9 @@ def test_turntable_with_a_noisy_gyro():
 
 
 def test_opreq_settles_faster_than_fixed_request_and_matches_the_batch_q_method(swing_runs):
-    request = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "request", "request_rho": 0.01}},
+    request = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "request", "request_rho": 0.01}, **COARSE_ONLY},
                           progress=False)
-    qmethod = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "qmethod"}}, progress=False)
+    qmethod = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "qmethod"}, **COARSE_ONLY}, progress=False)
     settle = {name: np.median([settling_time_s(r) for r in runs])
               for name, runs in (("opreq", swing_runs), ("request", request), ("qmethod", qmethod))}
     assert settle["opreq"] < settle["request"]

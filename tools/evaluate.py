@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 from rich.progress import Progress
-from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
+from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment, quat_from_dcm, skew
 from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
@@ -22,6 +22,8 @@ from sinsalign.service.pipeline import AlignmentPipeline
 from .sim.imu import simulate
 from .sim.scenarios import Scenario, get_scenario
 
+COARSE_ONLY = {"fine": {"enabled": False}}
+"""Overrides that stop the pipeline after the coarse stage (seed 000's OPREQ alone)."""
 SETTLE_BAND_DEG = 0.1
 HONEST_FROM_S = 30.0
 
@@ -47,9 +49,19 @@ def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
     return physical_limit(acc_n, gyro_n, scenario.site.lat, scenario.site.gravity) / DEG
 
 
-def run_once(scenario: Scenario, seed: int, config: Config) -> RunResult:
-    """Simulate one seed in memory and run the pipeline over it (the scenario's datasheet grade, as its log states)."""
-    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet())
+def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: Sequence[float] | None = None,
+             live: bool = False) -> RunResult:
+    """Simulate one seed in memory and run the pipeline over it (the scenario's datasheet grade, as its log states).
+
+    ``initial_error_deg`` (φ_E, φ_N, φ_U) starts the compass loops alone from the truth at t = 0 turned by that
+    misalignment, without the coarse stage (seed 001's compass-only runs).
+    """
+    initial = None
+    if initial_error_deg is not None:
+        phi = np.asarray(initial_error_deg, dtype=float) * DEG
+        initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
+    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
+                                 initial_q_b_n=initial)
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                           seed):
@@ -62,15 +74,16 @@ def run_once(scenario: Scenario, seed: int, config: Config) -> RunResult:
                      run_limit_deg(scenario, t))
 
 
-def _run_task(args: tuple[str, int, dict]) -> RunResult:
-    name, seed, overrides = args
-    return run_once(get_scenario(name), seed, config_from_mapping(overrides))
+def _run_task(args: tuple[str, int, dict, Sequence[float] | None]) -> RunResult:
+    name, seed, overrides, initial_error_deg = args
+    return run_once(get_scenario(name), seed, config_from_mapping(overrides), initial_error_deg)
 
 
 def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
-                progress: bool = True, label: str = "") -> list[RunResult]:
-    """Run every seed (in parallel processes); results in seed order."""
-    tasks = [(scenario_name, s, overrides or {}) for s in seeds]
+                progress: bool = True, label: str = "",
+                initial_error_deg: Sequence[float] | None = None) -> list[RunResult]:
+    """Run every seed (in parallel processes); results in seed order. See :func:`run_once`."""
+    tasks = [(scenario_name, s, overrides or {}, initial_error_deg) for s in seeds]
     workers = workers or min(len(tasks), os.cpu_count() or 1)
     results = []
     with Progress(disable=not progress, transient=True) as bar:
@@ -169,7 +182,7 @@ def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tupl
              f"mean {late[0]:g}–{late[1]:g} s | seed STD | in-window STD |", "|---|---|---|---|---|---|---|"]
     all_runs = {}
     for label, overrides in SOLVER_VARIANTS:
-        runs = monte_carlo(name, seeds, {"alignment": overrides}, progress=progress, label=label)
+        runs = monte_carlo(name, seeds, {"alignment": overrides, **COARSE_ONLY}, progress=progress, label=label)
         all_runs[label] = runs
         e, s = window_stats(runs, early), window_stats(runs, late)
         lines.append(f"| {label} | {np.median([settling_time_s(r) for r in runs]):.1f} | {e.heading_mean:+.4f} | "

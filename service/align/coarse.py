@@ -72,10 +72,12 @@ class InertialCoarseAlignment:
         """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
         self.update_block(np.asarray([t], dtype=float), np.reshape(dtheta, (1, 3)), np.reshape(dv, (1, 3)))
 
-    def update_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> None:
-        """N consecutive samples: times t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s."""
-        if len(t) == 0:
-            return
+    def update_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """N ≥ 1 consecutive samples: times t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s.
+
+        Returns the integrator's C_{b}^{b0} (N, 4) and α (N, 3) at the samples, for stages that
+        share the inertial integration (the compass loops).
+        """
         if self.t0 is None:
             self.t0 = float(t[0]) - self.sample_period_s
         q_b_b0, alpha = self.integrator.integrate(dtheta, dv)
@@ -92,6 +94,7 @@ class InertialCoarseAlignment:
             self._obs_count = int(counts[-1])
         self.t = float(t[-1])
         self._cached = None
+        return q_b_b0, alpha
 
     @property
     def elapsed_s(self) -> float:

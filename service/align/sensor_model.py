@@ -90,6 +90,12 @@ class AttitudeSigma:
     level_deg: float
 
 
+def bias_limit_rad(grade: SensorGrade, lat: float, gravity: float) -> tuple[float, float]:
+    """1-sigma (heading, level) misalignment in rad that the datasheet biases leave (§3.3 limit)."""
+    heading = np.hypot(np.tan(lat) * grade.acc_bias_ms2 / gravity, grade.gyro_bias_rad_s / (OMEGA_IE * np.cos(lat)))
+    return float(heading), grade.acc_bias_ms2 / gravity
+
+
 def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:
     """1-sigma error of inertial-frame coarse alignment after ``elapsed_s`` seconds.
 
@@ -106,11 +112,11 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
     w_cos = OMEGA_IE * np.cos(lat)
     q = grade.acc_vrw_ms_rts**2
     N2 = grade.gyro_arw_rad_rts**2
-    bias_heading2 = (np.tan(lat) * grade.acc_bias_ms2 / gravity) ** 2 + (grade.gyro_bias_rad_s / w_cos) ** 2
+    bias_heading, bias_level = bias_limit_rad(grade, lat, gravity)
     drift2 = (grade.gyro_bias_rad_s * T) ** 2
     noise_heading2 = 12.0 * q / (gravity * w_cos) ** 2 / T**3 + 1.2 * N2 / w_cos**2 / T
     noise_level2 = 4.0 * q / (gravity**2 * T) + N2 * T / 3.0
-    heading2 = bias_heading2 + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
-    level2 = (grade.acc_bias_ms2 / gravity) ** 2 + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
+    heading2 = bias_heading**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
+    level2 = bias_level**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
     return AttitudeSigma(min(float(np.sqrt(heading2)) / DEG, SIGMA_UNKNOWN_DEG),
                          min(float(np.sqrt(level2)) / DEG, SIGMA_UNKNOWN_DEG))

@@ -86,6 +86,17 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
                             AngleProfile(5.0 * DEG), AngleProfile()),
               _errors(0.01, 50.0, gyro_arw_deg_rth=0.002, acc_noise_ug=50.0), 200.0, 240.0,
               ((1.0, 120.0), (121.0, 240.0))),
+    _scenario("seed001-static", "seed 001 static base: L=32.057°, 200 Hz, 600 s, heading 30° pitch 1° roll 1°; "
+              "gyro 0.02°/h + 0.006°/h per sample, acc 50 µg + 50 µg per sample",
+              Site(32.057 * DEG, 118.786 * DEG), _swing((30.0, 1.0, 1.0), (0.0, 0.0, 0.0), (0.0, 0.0, 0.0)),
+              _errors(0.02, 50.0, gyro_noise_deg_h=0.006, acc_noise_ug=50.0), 200.0, 600.0,
+              ((101.0, 200.0), (550.0, 600.0))),
+    _scenario("seed001-swing", "seed 001 swing base: L=32.057°, 200 Hz, 600 s, heading 30° ± 5° at 0.125 Hz, "
+              "pitch 8° at 0.15 Hz, roll 6° at 0.2 Hz; gyro 0.02°/h + 0.006°/h per sample, acc 50 µg + 50 µg "
+              "per sample",
+              Site(32.057 * DEG, 118.786 * DEG), _swing((30.0, 0.0, 0.0), (5.0, 8.0, 6.0), (0.125, 0.15, 0.2)),
+              _errors(0.02, 50.0, gyro_noise_deg_h=0.006, acc_noise_ug=50.0), 200.0, 600.0,
+              ((101.0, 200.0), (550.0, 600.0))),
 )}
 
 

@@ -1,0 +1,291 @@
+"""Compass (gyrocompass-loop) fine alignment on a base fixed in position (seed 001; math §4).
+
+The platform frame p is the computed navigation frame. It is kept as C_{b0}^{p}: b0 is the
+inertially frozen body frame of the coarse stage, so the body attitude C_{b(t)}^{b0} and the
+specific-force integral α(t) of the shared strapdown integrator are all the loops need, and the
+current attitude is C_b^p(t) = C_{b0}^{p}(t) · C_{b(t)}^{b0}. Every control step of length Δ
+(a whole number of IMU samples) takes the b0-frame velocity increment Δα over the step:
+
+    V^p  += C_{b0}^{p}(mid) Δα + g^n Δ − 2 ω_ie^n × V^p Δ − K1 ⊙ V^p Δ     (horizontal only)
+    C_{b0}^{p} ← exp(−[ω_p Δ ×]) C_{b0}^{p},   ω_p = s ω_ie^n + ω_c       (s = ±1, see below)
+
+with the commanded rate ω_c held over the step (computed from the state at its start):
+
+    level loops (third order):  ω_cE = −(1 + K2) V_N / R − I_N,   İ_N = K3 V_N
+                                ω_cN = +(1 + K2) V_E / R + I_E,   İ_E = K3 V_E
+    azimuth loop (fourth order, north channel, replaces its level loop):
+                                ω_cE = −(1 + K2) V_N / R,   ω_cU = y,
+                                ẏ = −K3 y + K4 / (s Ω cos L) · V_N
+
+Error model (φ as in conventions.py, C_b^p = (I − [φ×]) C_b^n): δV̇_E = −g φ_N, δV̇_N = g φ_E,
+φ̇ = −ω_ie^n × φ + ω_c − ε^n. Its characteristic polynomials are the ones of math §4, so the
+gains come from pole placement: level s³ + K1 s² + ω_s²(1+K2) s + g K3 = (s+σ)(s²+2σs+2σ²)
+(ξ = 0.707, ω_d = σ), azimuth s(s+K3)(s²+K1 s+ω_s²(1+K2)) + g K4 = (s²+2σs+2σ²)². We keep the
+integrator gain K3 with the factor σ (seed 001 prints it without).
+
+Reverse-time passes (stored data) run the same step on the reversed world: samples in reverse
+order, Earth rate negated (s = −1), velocity negated. :meth:`CompassLoops.reverse` performs the
+switch so that it causes no transient: the damping tilt 2 K1 V / g that the loops hold on purpose
+is re-applied with the new velocity sign, the level integrators (which balance the Earth-rate and
+gyro-bias coupling) change sign with them, and the azimuth command keeps its sign (it corrects
+the same physical heading error in both directions).
+
+Honest uncertainty: the linear error model with white accelerometer and gyro noise propagates
+a covariance P over every step (transients, gain changes and passes included); the reported σ
+adds the bias limit and the azimuth offset −2 ε_U / σ_A.
+"""
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .conventions import skew
+from .earth import OMEGA_IE, Site, radii
+from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
+
+# error-state indices of the covariance model
+VE, VN, PE, PN, PU, IE, IN, YU = range(8)
+
+
+def level_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float]:
+    """(K1, K2, K3) of a third-order level loop with poles −σ, −σ ± jσ."""
+    ws2 = gravity / radius_m
+    return 3.0 * sigma, 4.0 * sigma**2 / ws2 - 1.0, 2.0 * sigma**3 / gravity
+
+
+def azimuth_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float, float]:
+    """(K1, K2, K3, K4) of the fourth-order azimuth loop with double poles −σ ± jσ."""
+    ws2 = gravity / radius_m
+    return 2.0 * sigma, 4.0 * sigma**2 / ws2 - 1.0, 2.0 * sigma, 4.0 * sigma**4 / gravity
+
+
+@dataclass(frozen=True, slots=True)
+class GainSchedule:
+    """Loop bandwidths σ (rad/s) against loop time since the fine stage started (s).
+
+    Between knots σ is interpolated geometrically, so the gains change smoothly and the commanded
+    rate never steps. An azimuth σ of 0 means the azimuth loop is off (levelling first); it
+    switches on at the first knot with a positive azimuth σ, and stays on.
+    """
+
+    time_s: tuple[float, ...]
+    level_sigma: tuple[float, ...]
+    azimuth_sigma: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        n = len(self.time_s)
+        if n == 0 or len(self.level_sigma) != n or len(self.azimuth_sigma) != n:
+            raise ValueError("schedule: time_s, level_sigma and azimuth_sigma need the same, non-zero length")
+        if any(b <= a for a, b in zip(self.time_s, self.time_s[1:], strict=False)) or self.time_s[0] != 0.0:
+            raise ValueError("schedule: time_s must start at 0 and increase")
+        if any(s <= 0.0 for s in self.level_sigma) or any(s < 0.0 for s in self.azimuth_sigma):
+            raise ValueError("schedule: level_sigma must be > 0 and azimuth_sigma ≥ 0")
+        on = [s > 0.0 for s in self.azimuth_sigma]
+        if any(a and not b for a, b in itertools.pairwise(on)) or not on[-1]:
+            raise ValueError("schedule: once positive, azimuth_sigma must stay positive, and end positive")
+
+    @property
+    def final_time_s(self) -> float:
+        return self.time_s[-1]
+
+    def sigmas(self, t_s: float) -> tuple[float, float]:
+        """(level σ, azimuth σ) at loop time ``t_s``; azimuth σ is 0 before its loop starts."""
+        return _geometric(self.time_s, self.level_sigma, t_s), _geometric(self.time_s, self.azimuth_sigma, t_s)
+
+
+def _geometric(knots: tuple[float, ...], values: tuple[float, ...], t: float) -> float:
+    if t >= knots[-1]:
+        return values[-1]
+    j = int(np.searchsorted(knots, t, side="right")) - 1
+    a, b = values[j], values[j + 1]
+    if a <= 0.0:
+        return 0.0 if b <= 0.0 or t < knots[j + 1] else b
+    f = (t - knots[j]) / (knots[j + 1] - knots[j])
+    return a * (b / a) ** f
+
+
+def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
+    """exp([φ×]) (3, 3) by Rodrigues' formula, exact for any angle."""
+    angle = float(np.sqrt(rotvec @ rotvec))
+    S = skew(rotvec)
+    if angle < 1e-8:
+        return np.eye(3) + S + 0.5 * S @ S
+    return np.eye(3) + np.sin(angle) / angle * S + (1.0 - np.cos(angle)) / angle**2 * S @ S
+
+
+def expm(A: np.ndarray) -> np.ndarray:
+    """Matrix exponential by scaling and squaring of a Taylor series (small dense matrices)."""
+    norm = float(np.abs(A).sum(axis=1).max())
+    squarings = max(0, int(np.ceil(np.log2(norm / 0.25))) if norm > 0.25 else 0)
+    X = A / 2.0**squarings
+    E = np.eye(len(A))
+    term = np.eye(len(A))
+    for k in range(1, 10):
+        term = term @ X / k
+        E = E + term
+    for _ in range(squarings):
+        E = E @ E
+    return E
+
+
+@dataclass(slots=True)
+class CompassState:
+    """Everything one run of the loops carries; :meth:`copy` clones it for the stored-data passes.
+
+    C_b0_p : C_{b0}^{p} (3, 3). V : platform velocity (E, N), m/s. I_E, I_N : level integrator
+    rates (rad/s). y : azimuth command (rad/s). t_loop_s : loop time on the gain schedule (s).
+    azimuth_on : the north channel runs the azimuth loop. earth_sign : +1 forward, −1 reverse time.
+    P : (8, 8) error covariance (δV_E, δV_N, φ_E, φ_N, φ_U, I_E, I_N, y).
+    """
+
+    C_b0_p: np.ndarray
+    V: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    I_E: float = 0.0
+    I_N: float = 0.0
+    y: float = 0.0
+    t_loop_s: float = 0.0
+    azimuth_on: bool = False
+    earth_sign: float = 1.0
+    P: np.ndarray = field(default_factory=lambda: np.zeros((8, 8)))
+
+    def copy(self) -> CompassState:
+        return CompassState(self.C_b0_p.copy(), self.V.copy(), self.I_E, self.I_N, self.y, self.t_loop_s,
+                            self.azimuth_on, self.earth_sign, self.P.copy())
+
+
+class CompassLoops:
+    """The loop mechanics of one site, grade and gain schedule (stateless; states are passed in)."""
+
+    def __init__(self, site: Site, grade: SensorGrade, schedule: GainSchedule) -> None:
+        self.site = site
+        self.grade = grade
+        self.schedule = schedule
+        self.gravity = site.gravity
+        R_M, R_N = radii(site.lat)
+        self.radius_m = float(np.sqrt(R_M * R_N)) + site.height_m
+        self.omega_cos = OMEGA_IE * np.cos(site.lat)
+        self.omega_sin = OMEGA_IE * np.sin(site.lat)
+        self.omega_ie_n = np.array([0.0, self.omega_cos, self.omega_sin])
+        self._F_cache: dict[tuple, np.ndarray] = {}
+
+    def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float,
+              heading_sigma_rad: float) -> CompassState:
+        """A fresh loop state from the attitude C_b^n (its 1-sigma noise errors seed P)."""
+        P = np.zeros((8, 8))
+        P[PE, PE] = P[PN, PN] = tilt_sigma_rad**2
+        P[PU, PU] = heading_sigma_rad**2
+        return CompassState(C_b_n @ C_b_b0.T, P=P)
+
+    def _gains(self, state: CompassState) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
+        level_sigma, azimuth_sigma = self.schedule.sigmas(state.t_loop_s)
+        level = level_gains(level_sigma, self.gravity, self.radius_m)
+        azimuth = azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
+        return level, azimuth
+
+    def commanded_rate(self, state: CompassState) -> np.ndarray:
+        """ω_c (E, N, U) in rad/s from the state at the start of a step."""
+        (_, K2L, _), azimuth = self._gains(state)
+        V_E, V_N = state.V
+        if state.azimuth_on and azimuth is not None:
+            omega_E = -(1.0 + azimuth[1]) * V_N / self.radius_m
+        else:
+            omega_E = -(1.0 + K2L) * V_N / self.radius_m - state.I_N
+        return np.array([omega_E, (1.0 + K2L) * V_E / self.radius_m + state.I_E, state.y])
+
+    def platform_rate(self, state: CompassState) -> np.ndarray:
+        """ω_p = s ω_ie^n + ω_c, the rate of the platform frame over inertial space (rad/s)."""
+        return state.earth_sign * self.omega_ie_n + self.commanded_rate(state)
+
+    def step(self, state: CompassState, dalpha_b0: np.ndarray, dt_s: float, advance_schedule: bool = True) -> None:
+        """Advance ``state`` by one control step with the b0-frame velocity increment Δα (m/s).
+
+        ``advance_schedule`` False keeps the loop time (and so the gains) where it is: the
+        stored-data passes run at the bandwidth the loops had when the buffer filled.
+        """
+        level, azimuth = self._gains(state)
+        if azimuth is not None and not state.azimuth_on:
+            # the azimuth loop takes the north channel over; its integrator rate is the signal now
+            state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
+        K1L, _, K3L = level
+        north = azimuth if state.azimuth_on else level
+        omega_p = state.earth_sign * self.omega_ie_n + self.commanded_rate(state)
+        dv = rotation_matrix(-0.5 * dt_s * omega_p) @ state.C_b0_p @ dalpha_b0
+        V_E, V_N = state.V
+        w_up = state.earth_sign * self.omega_sin
+        state.V = np.array([V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s,
+                            V_N + dv[1] + (-2.0 * w_up * V_E - north[0] * V_N) * dt_s])
+        state.I_E += K3L * V_E * dt_s
+        if state.azimuth_on:
+            state.y += (-azimuth[2] * state.y + azimuth[3] / (state.earth_sign * self.omega_cos) * V_N) * dt_s
+        else:
+            state.I_N += K3L * V_N * dt_s
+        C = rotation_matrix(-dt_s * omega_p) @ state.C_b0_p
+        state.C_b0_p = 1.5 * C - 0.5 * C @ C.T @ C   # re-orthonormalise (first-order, per step)
+        F = self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, dt_s)
+        state.P = F @ state.P @ F.T + self._process_noise(dt_s)
+        if advance_schedule:
+            state.t_loop_s += dt_s
+
+    def reverse(self, state: CompassState) -> None:
+        """Turn the state round for a pass in the other time direction (see the module docstring)."""
+        level, azimuth = self._gains(state)
+        K1N = (azimuth if state.azimuth_on and azimuth is not None else level)[0]
+        V_E, V_N = state.V
+        tilt = np.array([-2.0 * K1N * V_N / self.gravity, 2.0 * level[0] * V_E / self.gravity, 0.0])
+        state.C_b0_p = (np.eye(3) - skew(tilt)) @ state.C_b0_p
+        state.V = -state.V
+        state.I_E, state.I_N = -state.I_E, -state.I_N
+        state.earth_sign = -state.earth_sign
+        T = np.eye(8)
+        T[VE, VE] = T[VN, VN] = T[IE, IE] = T[IN, IN] = -1.0
+        T[PE, VN] = -2.0 * K1N / self.gravity
+        T[PN, VE] = 2.0 * level[0] / self.gravity
+        state.P = T @ state.P @ T.T
+
+    def _transition(self, level: tuple, azimuth: tuple | None, earth_sign: float, dt_s: float) -> np.ndarray:
+        key = (level, azimuth, earth_sign, dt_s)
+        F = self._F_cache.get(key)
+        if F is None:
+            if len(self._F_cache) > 64:   # the schedule interpolates: keep the cache small
+                self._F_cache.clear()
+            F = self._F_cache[key] = expm(self.error_dynamics(level, azimuth, earth_sign) * dt_s)
+        return F
+
+    def error_dynamics(self, level: tuple, azimuth: tuple | None, earth_sign: float = 1.0) -> np.ndarray:
+        """A (8, 8) of the linear error model: ẋ = A x for x = (δV_E, δV_N, φ_E, φ_N, φ_U, I_E, I_N, y)."""
+        g, R = self.gravity, self.radius_m
+        wc, ws = earth_sign * self.omega_cos, earth_sign * self.omega_sin
+        K1L, K2L, K3L = level
+        north = azimuth if azimuth is not None else level
+        A = np.zeros((8, 8))
+        A[VE, VE], A[VE, PN] = -K1L, -g
+        A[VN, VN], A[VN, PE] = -north[0], g
+        A[PE, VN], A[PE, PN], A[PE, PU] = -(1.0 + north[1]) / R, ws, -wc
+        A[PN, VE], A[PN, IE], A[PN, PE] = (1.0 + K2L) / R, 1.0, -ws
+        A[PU, PE] = wc
+        A[IE, VE] = K3L
+        if azimuth is None:
+            A[PE, IN] = -1.0
+            A[IN, VN] = K3L
+        else:
+            A[PU, YU] = 1.0
+            A[YU, YU], A[YU, VN] = -azimuth[2], azimuth[3] / wc
+        return A
+
+    def _process_noise(self, dt_s: float) -> np.ndarray:
+        Q = np.zeros((8, 8))
+        Q[VE, VE] = Q[VN, VN] = self.grade.acc_vrw_ms_rts**2 * dt_s
+        Q[PE, PE] = Q[PN, PN] = Q[PU, PU] = self.grade.gyro_arw_rad_rts**2 * dt_s
+        return Q
+
+    def sigma(self, state: CompassState) -> AttitudeSigma:
+        """1-sigma heading and level error (deg): bias limit, azimuth offset and the loop's noise."""
+        bias_heading, bias_level = bias_limit_rad(self.grade, self.site.lat, self.gravity)
+        _, azimuth_sigma = self.schedule.sigmas(state.t_loop_s)
+        offset = 2.0 * self.grade.gyro_bias_rad_s / azimuth_sigma if state.azimuth_on and azimuth_sigma > 0 else 0.0
+        heading2 = bias_heading**2 + offset**2 + ESTIMATOR_EFFICIENCY * state.P[PU, PU]
+        level2 = bias_level**2 + ESTIMATOR_EFFICIENCY * 0.5 * (state.P[PE, PE] + state.P[PN, PN])
+        return AttitudeSigma(min(float(np.degrees(np.sqrt(heading2))), SIGMA_UNKNOWN_DEG),
+                             min(float(np.degrees(np.sqrt(level2))), SIGMA_UNKNOWN_DEG))

@@ -1,0 +1,81 @@
+"""Compass fine alignment with optional stored-data passes, driven one control step at a time.
+
+Pure computation, no I/O. The caller (service/pipeline.py) feeds every control step from the
+start of the data: :meth:`FineAlignment.feed` stores the first ``stored_data_s`` seconds and, once
+the loops run, advances them. When the store fills while the loops run, the backward/forward
+passes start on a clone (stored.py) and run ``pass_steps`` steps per control step (None: all at
+once, as in offline replay); the clone then replaces the live state.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .compass import CompassLoops, CompassState, GainSchedule, rotation_matrix
+from .earth import Site
+from .sensor_model import AttitudeSigma, SensorGrade
+from .stored import RepeatedNavigation, StepBuffer
+
+
+class FineAlignment:
+    """Compass loops for one site and grade.
+
+    Parameters
+    ----------
+    schedule : loop bandwidths against loop time.
+    control_interval_s : nominal control step (s); sizes the store.
+    stored_data_s : seconds of steps kept for the passes (0: no passes).
+    stored_pairs : backward + forward pairs run over them.
+    pass_steps : steps of pass work per live control step; None runs the passes at once.
+    """
+
+    def __init__(self, site: Site, grade: SensorGrade, schedule: GainSchedule, control_interval_s: float,
+                 stored_data_s: float = 80.0, stored_pairs: int = 3, pass_steps: int | None = None) -> None:
+        self.loops = CompassLoops(site, grade, schedule)
+        self.pass_steps = pass_steps
+        self.pairs = stored_pairs
+        capacity = round(stored_data_s / control_interval_s) if stored_pairs > 0 else 0
+        self.buffer = StepBuffer(capacity)
+        self.state: CompassState | None = None
+        self.passes: RepeatedNavigation | None = None
+        self.passes_done = capacity == 0
+        self._omega_p = np.zeros(3)
+
+    @property
+    def active(self) -> bool:
+        return self.state is not None
+
+    def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float, heading_sigma_rad: float) -> None:
+        """Hand-over: start the loops from attitude C_b^n (3, 3) with its 1-sigma noise errors."""
+        self.state = self.loops.start(C_b_n, C_b_b0, tilt_sigma_rad, heading_sigma_rad)
+        self._omega_p = self.loops.platform_rate(self.state)
+
+    def feed(self, dalpha_b0: np.ndarray, dt_s: float) -> None:
+        """One control step of data: Δα (3,) m/s in b0 axes over the last ``dt_s`` seconds."""
+        if not self.buffer.full:
+            self.buffer.append(dalpha_b0, dt_s)
+            if self.buffer.full and self.state is None:
+                self.passes_done = True   # the loops started too late to use the store
+        if self.state is None:
+            return
+        self.loops.step(self.state, dalpha_b0, dt_s)
+        if self.passes is None and not self.passes_done and self.buffer.full:
+            self.passes = RepeatedNavigation(self.loops, self.state, self.buffer, self.pairs)
+        elif self.passes is not None:
+            self.passes.queue(dalpha_b0, dt_s)
+        if self.passes is not None and self.passes.run(self.pass_steps):
+            self.state = self.passes.state
+            self.passes, self.passes_done = None, True
+        self._omega_p = self.loops.platform_rate(self.state)
+
+    def attitude(self, C_b_b0: np.ndarray, since_step_s: float) -> np.ndarray:
+        """C_b^n (3, 3) of the body attitude C_{b}^{b0}, ``since_step_s`` after the last control step."""
+        return rotation_matrix(-since_step_s * self._omega_p) @ self.state.C_b0_p @ C_b_b0
+
+    @property
+    def sigma(self) -> AttitudeSigma:
+        return self.loops.sigma(self.state)
+
+    @property
+    def schedule_complete(self) -> bool:
+        """The gains have reached their final values and no passes are pending."""
+        return self.passes_done and self.state.t_loop_s >= self.loops.schedule.final_time_s
