@@ -53,9 +53,9 @@ class FineConfig:
     handover_sigma_deg: float = 0.15
     handover_time_s: float = 60.0
     control_interval_s: float = 0.1
-    schedule_time_s: tuple[float, ...] = (0.0, 30.0, 31.0, 150.0, 300.0, 450.0)
+    schedule_time_s: tuple[float, ...] = (0.0, 30.0, 31.0, 100.0, 200.0, 300.0)
     level_sigma: tuple[float, ...] = (0.5, 0.5, 0.05, 0.04, 0.03, 0.02)
-    azimuth_sigma: tuple[float, ...] = (0.0, 0.0, 0.05, 0.02, 0.01, 0.006)
+    azimuth_sigma: tuple[float, ...] = (0.0, 0.0, 0.05, 0.03, 0.015, 0.01)
     stored_data_s: float = 80.0
     stored_pairs: int = 3
     live_pass_steps: int = 40

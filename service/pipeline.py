@@ -106,54 +106,61 @@ class AlignmentPipeline:
         records: list[ResultRecord] = []
         M, i = self.block_samples, 0
         if self._n_pending:
-            take = min(M - self._n_pending, len(samples))
-            self._pending[self._n_pending:self._n_pending + take] = samples[:take]
-            self._n_pending += take
-            i = take
+            i = min(M - self._n_pending, len(samples))
+            self._pending[self._n_pending:self._n_pending + i] = samples[:i]
+            self._n_pending += i
             if self._n_pending == M:
-                self._process_block(self._pending, records)
+                self._process_blocks(self._pending, records)
                 self._n_pending = 0
-        while len(samples) - i >= M:
-            self._process_block(samples[i:i + M], records)
-            i += M
-        rest = len(samples) - i
-        if rest:
-            self._pending[:rest] = samples[i:]
-            self._n_pending = rest
+        whole = (len(samples) - i) // M * M
+        if whole:
+            self._process_blocks(samples[i:i + whole], records)
+        rest = samples[i + whole:]
+        self._pending[:len(rest)] = rest
+        self._n_pending += len(rest)
         return records
 
-    def _process_block(self, block: np.ndarray, records: list[ResultRecord]) -> None:
-        t, dtheta, dv = block[:, 0], block[:, 1:4], block[:, 4:7]
+    def _process_blocks(self, samples: np.ndarray, records: list[ResultRecord]) -> None:
+        """Whole blocks: integrate them at once, then per block fold the observations, emit, control."""
+        M = self.block_samples
+        t = samples[:, 0]
+        elapsed, q_b_b0, alpha = self.coarse.integrate(t, samples[:, 1:4], samples[:, 4:7], M)
+        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha)
         counts = self._epoch_counts(t)
-        start = 0
-        for end in np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0):
-            q_b_b0, _ = self.coarse.update_block(t[start:end + 1], dtheta[start:end + 1], dv[start:end + 1])
-            start = end + 1
-            records.append(self._record(round(float(counts[end]) * self.period_s, 9), float(t[end]), q_b_b0[-1]))
-        if start < len(t):
-            self.coarse.update_block(t[start:], dtheta[start:], dv[start:])
+        epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
         self._epoch_count = int(counts[-1])
-        self._control_step(float(t[-1]))
+        folded = 0
+        for end in range(M - 1, len(t), M):
+            for j in epochs[(epochs > end - M) & (epochs <= end)]:
+                folded = self._fold_until(due, dK, trace_R, folded, j)
+                records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j]))
+            folded = self._fold_until(due, dK, trace_R, folded, end)
+            self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end])
 
-    def _control_step(self, t_end: float) -> None:
-        alpha = self.coarse.integrator.alpha_b0
+    def _fold_until(self, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int, sample: int) -> int:
+        """Fold the observations taken at samples up to ``sample``; returns how many are folded."""
+        upto = int(np.searchsorted(due, sample, side="right"))
+        if upto > folded:
+            self.coarse.solver.fold(dK[folded:upto], trace_R[folded:upto])
+        return upto
+
+    def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
-        self._alpha_step, self._t_step = alpha.copy(), t_end
+        self._alpha_step, self._t_step = alpha, t_end
         if self.fine is None:
             return
         if not self.fine.active and self._initial_C_b_n is not None:
             self.fine.start(self._initial_C_b_n, np.eye(3), *self._initial_sigma())
         self.fine.feed(dalpha, dt_s)
-        if not self.fine.active and self._handover_due():
-            solution = self.coarse.solution
-            noise = self._noise_part(solution)
-            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(self.coarse.integrator.q_b_b0), *noise)
+        if not self.fine.active and self._handover_due(elapsed_s):
+            solution = self.coarse.solution_at(t_end, q_b_b0)
+            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *self._noise_part(solution))
 
-    def _handover_due(self) -> bool:
+    def _handover_due(self, elapsed_s: float) -> bool:
         f = self.config.fine
         if f.handover == "time":
-            return self.coarse.elapsed_s >= f.handover_time_s
-        return self.coarse.solver.n_obs > 0 and self.coarse.solution.heading_sigma_deg <= f.handover_sigma_deg
+            return elapsed_s >= f.handover_time_s
+        return self.coarse.sigma(elapsed_s)[0] <= f.handover_sigma_deg
 
     def _noise_part(self, solution: AttitudeSolution) -> tuple[float, float]:
         """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit."""
@@ -169,7 +176,7 @@ class AlignmentPipeline:
     def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray) -> ResultRecord:
         threshold = self.config.alignment.converged_heading_sigma_deg
         if self.fine is None or not self.fine.active:
-            return result_record(self.coarse.solution, t_epoch, "coarse", threshold)
+            return result_record(self.coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
         C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
         sigma = self.fine.sigma
         solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,

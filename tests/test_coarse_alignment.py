@@ -72,8 +72,8 @@ def test_turntable_with_a_noisy_gyro():
 
 
 def test_opreq_settles_faster_than_fixed_request_and_matches_the_batch_q_method(swing_runs):
-    request = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "request", "request_rho": 0.01}, **COARSE_ONLY},
-                          progress=False)
+    request = monte_carlo("seed000-swing", SEEDS,
+                          {"alignment": {"solver": "request", "request_rho": 0.01}, **COARSE_ONLY}, progress=False)
     qmethod = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "qmethod"}, **COARSE_ONLY}, progress=False)
     settle = {name: np.median([settling_time_s(r) for r in runs])
               for name, runs in (("opreq", swing_runs), ("request", request), ("qmethod", qmethod))}

@@ -72,29 +72,39 @@ class InertialCoarseAlignment:
         """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
         self.update_block(np.asarray([t], dtype=float), np.reshape(dtheta, (1, 3)), np.reshape(dv, (1, 3)))
 
-    def update_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """N ≥ 1 consecutive samples: times t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s.
+    def update_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> None:
+        """N ≥ 1 consecutive samples: times t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s."""
+        elapsed, q_b_b0, alpha = self.integrate(t, dtheta, dv)
+        _, dK, trace_R = self.observe(elapsed, q_b_b0, alpha)
+        self.solver.fold(dK, trace_R)
 
-        Returns the integrator's C_{b}^{b0} (N, 4) and α (N, 3) at the samples, for stages that
-        share the inertial integration (the compass loops).
+    def integrate(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
+                  block_samples: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Strapdown integration of N samples (see :meth:`InertialIntegrator.integrate`).
+
+        Returns the time since the start (N,) s, C_{b}^{b0} (N, 4) and α (N, 3) m/s at the samples.
         """
+        t = np.asarray(t, dtype=float)
         if self.t0 is None:
             self.t0 = float(t[0]) - self.sample_period_s
-        q_b_b0, alpha = self.integrator.integrate(dtheta, dv)
-        elapsed = np.asarray(t, dtype=float) - self.t0
-        # observation k is due at k·interval; a sample within half a period of it takes it
-        counts = np.floor((elapsed + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
-        due = np.flatnonzero(np.diff(counts, prepend=self._obs_count) > 0)
-        if len(due):
-            b, r = self.source.vectors(elapsed[due], alpha[due], q_b_b0[due])
-            b = b / np.linalg.norm(b, axis=1, keepdims=True)
-            r = r / np.linalg.norm(r, axis=1, keepdims=True)
-            self.solver.add(b, r, self.grade.observation_variance(elapsed[due], self._gravity,
-                                                                          self.disturbance_velocity_mps))
-            self._obs_count = int(counts[-1])
+        q_b_b0, alpha = self.integrator.integrate(dtheta, dv, block_samples)
         self.t = float(t[-1])
         self._cached = None
-        return q_b_b0, alpha
+        return t - self.t0, q_b_b0, alpha
+
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray,
+                alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The observations due among integrated samples: (sample indices, δK, tr R) for the solver's fold."""
+        # observation k is due at k·interval; a sample within half a period of it takes it
+        counts = np.floor((elapsed_s + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
+        due = np.flatnonzero(np.diff(counts, prepend=self._obs_count) > 0)
+        self._obs_count = int(counts[-1])
+        b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due])
+        b = b / np.sqrt(np.einsum("mi,mi->m", b, b))[:, None]
+        r = r / np.sqrt(np.einsum("mi,mi->m", r, r))[:, None]
+        mu = self.grade.observation_variance(elapsed_s[due], self._gravity, self.disturbance_velocity_mps)
+        self._cached = None
+        return (due, *self.solver.prepare(b, r, mu))
 
     @property
     def elapsed_s(self) -> float:
@@ -105,21 +115,25 @@ class InertialCoarseAlignment:
         """Estimate of the constant C_b^n(0) as [w, x, y, z]."""
         return self.solver.quaternion()
 
+    def sigma(self, elapsed_s: float) -> tuple[float, float]:
+        """Reported 1-sigma (heading, level) in degrees after ``elapsed_s`` of alignment."""
+        if self.solver.n_obs == 0:
+            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+        sigma = inertial_alignment_sigma(self.grade, self._lat, self._gravity, elapsed_s)
+        return sigma.heading_deg, sigma.level_deg
+
+    def solution_at(self, t: float, q_b_b0: np.ndarray) -> AttitudeSolution:
+        """The attitude C_b^n at sample time t whose body attitude is C_{b}^{b0} = ``q_b_b0``."""
+        elapsed = 0.0 if self.t0 is None else t - self.t0
+        C_b_n = self.source.C_n_n0(elapsed).T @ dcm_from_quat(self.q_b_n0) @ dcm_from_quat(q_b_b0)
+        heading_sigma, level_sigma = self.sigma(elapsed)
+        return AttitudeSolution(t=t, q_b_n=quat_from_dcm(C_b_n), heading_sigma_deg=heading_sigma,
+                                level_sigma_deg=level_sigma, rho=self.solver.rho, trace_P=self.solver.trace_P,
+                                n_obs=self.solver.n_obs)
+
     @property
     def solution(self) -> AttitudeSolution:
         """The current attitude C_b^n(t) with its uncertainty (computed on demand, cached)."""
         if self._cached is None:
-            C_b_n0 = dcm_from_quat(self.q_b_n0)
-            C_b_b0 = dcm_from_quat(self.integrator.q_b_b0)
-            C_b_n = self.source.C_n_n0(self.elapsed_s).T @ C_b_n0 @ C_b_b0
-            if self.solver.n_obs == 0:
-                heading_sigma = level_sigma = SIGMA_UNKNOWN_DEG
-            else:
-                sigma = inertial_alignment_sigma(self.grade, self._lat, self._gravity, self.elapsed_s)
-                heading_sigma, level_sigma = sigma.heading_deg, sigma.level_deg
-            self._cached = AttitudeSolution(t=self.t if self.t is not None else 0.0, q_b_n=quat_from_dcm(C_b_n),
-                                            heading_sigma_deg=heading_sigma, level_sigma_deg=level_sigma,
-                                            rho=self.solver.rho, trace_P=self.solver.trace_P,
-                                            n_obs=self.solver.n_obs)
+            self._cached = self.solution_at(self.t if self.t is not None else 0.0, self.integrator.q_b_b0)
         return self._cached
-

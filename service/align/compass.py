@@ -37,6 +37,7 @@ adds the bias limit and the azimuth offset −2 ε_U / σ_A.
 from __future__ import annotations
 
 import itertools
+from bisect import bisect_right
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -98,7 +99,7 @@ class GainSchedule:
 def _geometric(knots: tuple[float, ...], values: tuple[float, ...], t: float) -> float:
     if t >= knots[-1]:
         return values[-1]
-    j = int(np.searchsorted(knots, t, side="right")) - 1
+    j = bisect_right(knots, t) - 1
     a, b = values[j], values[j + 1]
     if a <= 0.0:
         return 0.0 if b <= 0.0 or t < knots[j + 1] else b
@@ -108,8 +109,9 @@ def _geometric(knots: tuple[float, ...], values: tuple[float, ...], t: float) ->
 
 def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
     """exp([φ×]) (3, 3) by Rodrigues' formula, exact for any angle."""
-    angle = float(np.sqrt(rotvec @ rotvec))
-    S = skew(rotvec)
+    x, y, z = rotvec
+    angle = float(np.sqrt(x * x + y * y + z * z))
+    S = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     if angle < 1e-8:
         return np.eye(3) + S + 0.5 * S @ S
     return np.eye(3) + np.sin(angle) / angle * S + (1.0 - np.cos(angle)) / angle**2 * S @ S
@@ -179,14 +181,21 @@ class CompassLoops:
         return CompassState(C_b_n @ C_b_b0.T, P=P)
 
     def _gains(self, state: CompassState) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
-        level_sigma, azimuth_sigma = self.schedule.sigmas(state.t_loop_s)
+        return self.gains_at(state.t_loop_s)
+
+    def gains_at(self, t_loop_s: float) -> tuple[tuple[float, float, float], tuple[float, float, float, float] | None]:
+        """(level K1..K3, azimuth K1..K4 or None while it is off) at loop time ``t_loop_s``."""
+        level_sigma, azimuth_sigma = self.schedule.sigmas(t_loop_s)
         level = level_gains(level_sigma, self.gravity, self.radius_m)
         azimuth = azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
         return level, azimuth
 
     def commanded_rate(self, state: CompassState) -> np.ndarray:
         """ω_c (E, N, U) in rad/s from the state at the start of a step."""
-        (_, K2L, _), azimuth = self._gains(state)
+        return self._command(state, *self._gains(state))
+
+    def _command(self, state: CompassState, level: tuple, azimuth: tuple | None) -> np.ndarray:
+        K2L = level[1]
         V_E, V_N = state.V
         if state.azimuth_on and azimuth is not None:
             omega_E = -(1.0 + azimuth[1]) * V_N / self.radius_m
@@ -210,8 +219,9 @@ class CompassLoops:
             state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
         K1L, _, K3L = level
         north = azimuth if state.azimuth_on else level
-        omega_p = state.earth_sign * self.omega_ie_n + self.commanded_rate(state)
-        dv = rotation_matrix(-0.5 * dt_s * omega_p) @ state.C_b0_p @ dalpha_b0
+        omega_p = state.earth_sign * self.omega_ie_n + self._command(state, level, azimuth)
+        half_turn = rotation_matrix(-0.5 * dt_s * omega_p)
+        dv = half_turn @ (state.C_b0_p @ dalpha_b0)
         V_E, V_N = state.V
         w_up = state.earth_sign * self.omega_sin
         state.V = np.array([V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s,
@@ -221,7 +231,7 @@ class CompassLoops:
             state.y += (-azimuth[2] * state.y + azimuth[3] / (state.earth_sign * self.omega_cos) * V_N) * dt_s
         else:
             state.I_N += K3L * V_N * dt_s
-        C = rotation_matrix(-dt_s * omega_p) @ state.C_b0_p
+        C = half_turn @ (half_turn @ state.C_b0_p)
         state.C_b0_p = 1.5 * C - 0.5 * C @ C.T @ C   # re-orthonormalise (first-order, per step)
         F = self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, dt_s)
         state.P = F @ state.P @ F.T + self._process_noise(dt_s)

@@ -43,10 +43,19 @@ def skew(v: np.ndarray) -> np.ndarray:
     return S
 
 
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b of (..., 3) vectors (broadcasting); np.cross without its per-call overhead."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    a1, a2, a3 = a[..., 0], a[..., 1], a[..., 2]
+    b1, b2, b3 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack((a2 * b3 - a3 * b2, a3 * b1 - a1 * b3, a1 * b2 - a2 * b1), axis=-1)
+
+
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product p ⊗ q of [w, x, y, z] quaternions (broadcasting)."""
-    pw, px, py, pz = np.moveaxis(np.asarray(p, dtype=float), -1, 0)
-    qw, qx, qy, qz = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
+    p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+    pw, px, py, pz = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    qw, qx, qy, qz = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     return np.stack((pw * qw - px * qx - py * qy - pz * qz,
                      pw * qx + px * qw + py * qz - pz * qy,
                      pw * qy - px * qz + py * qw + pz * qx,
@@ -54,9 +63,14 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:
-    """Unit quaternion with a non-negative scalar part (one of the two signs, chosen fixed)."""
+    """Unit quaternion with a non-negative scalar part (one of the two signs, chosen fixed).
+
+    The norm is written out element by element, so a quaternion gets the same bits whatever the
+    shape of the array it sits in (the pipeline's live and offline paths rely on it).
+    """
     q = np.asarray(q, dtype=float)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    q = q / np.sqrt(w * w + x * x + y * y + z * z)[..., None]
     return np.where(q[..., :1] < 0.0, -q, q)
 
 
@@ -88,8 +102,8 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     v = np.asarray(v, dtype=float)
     w = q[..., :1]
     u = q[..., 1:]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    t = 2.0 * cross(u, v)
+    return v + w * t + cross(u, t)
 
 
 def dcm_from_quat(q: np.ndarray) -> np.ndarray:

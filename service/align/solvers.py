@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import quat_normalize
+from .conventions import cross, quat_normalize
 
 SOLVERS = ("opreq", "request", "qmethod")
 
@@ -27,7 +27,7 @@ def delta_K(b: np.ndarray, r: np.ndarray) -> np.ndarray:
     sigma = np.einsum("mii->m", B)
     K = np.empty((len(b), 4, 4))
     K[:, :3, :3] = B + np.swapaxes(B, 1, 2) - sigma[:, None, None] * np.eye(3)
-    z = np.cross(b, r)
+    z = cross(b, r)
     K[:, :3, 3] = z
     K[:, 3, :3] = z
     K[:, 3, 3] = sigma
@@ -84,28 +84,34 @@ class RecursiveK:
         b, r : (M, 3) unit observation (body) and reference (navigation) vectors.
         mu : (M,) per-axis variance of each b (rad²), OPREQ's noise model.
         """
-        dK = delta_K(b, r)
+        self.fold(*self.prepare(b, r, mu))
+
+    @staticmethod
+    def prepare(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(δK (M, 4, 4), tr R (M,)) of M observations, for :meth:`fold` (vectorised)."""
         trace_R = np.trace(request_noise(b, r, np.asarray(mu, dtype=float)), axis1=1, axis2=2)
-        # Every step is K ← a K + c δK: run the scalar recursion, then combine the δK at once.
-        coef = np.empty(len(b))
-        scale = 1.0
-        m, trace_P, n = self.m, self.trace_P, self.n_obs
+        return delta_K(b, r), trace_R
+
+    def fold(self, dK: np.ndarray, trace_R: np.ndarray) -> None:
+        """Blend prepared observations into K one after the other: K ← a K + c δK.
+
+        Strictly sequential, so K gets the same bits however the observations are grouped into
+        calls (one per block live, many per chunk offline).
+        """
+        m, trace_P, n, K, rho = self.m, self.trace_P, self.n_obs, self.K, self.rho
         for j, tr_R in enumerate(trace_R):
             if n == 0:  # K_0 = δK_0, P_0 = R_0, m_0 = 1
-                a, c, m, trace_P, rho = 0.0, 1.0, 1.0, tr_R, 1.0
+                K, m, trace_P, rho = dK[j].copy(), 1.0, float(tr_R), 1.0
             else:
                 trace_P += self.trace_Q
                 rho = self._gain(m, trace_P, tr_R, n)
                 m_new = (1.0 - rho) * m + rho
                 a, c = (1.0 - rho) * m / m_new, rho / m_new
                 trace_P = a * a * trace_P + c * c * tr_R
+                K = a * K + c * dK[j]
                 m = m_new
-            coef[:j] *= a
-            coef[j] = c
-            scale *= a
             n += 1
-        self.K = scale * self.K + np.tensordot(coef, dK, axes=1)
-        self.m, self.trace_P, self.n_obs, self.rho = m, trace_P, n, rho
+        self.K, self.m, self.trace_P, self.n_obs, self.rho = K, m, trace_P, n, rho
 
     def _gain(self, m: float, trace_P: float, trace_R: float, n_before: int) -> float:
         if self.solver == "opreq":

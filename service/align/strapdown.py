@@ -7,22 +7,25 @@ single-sample coning and sculling corrections. Samples arrive as increments over
 
 Blocks of samples are integrated at once: the per-sample rotation quaternions are chained with
 a parallel prefix product (log2 N vectorised steps), which gives the same attitude as the
-sequential product to rounding. One sample is a block of one, so the daemon's per-sample path
-and the replay's block path run the same code.
+sequential product to rounding. With ``block_samples`` = M the chunk is cut into blocks of M
+samples, each scanned on its own and chained to the previous one: the arithmetic of a block then
+depends on its M samples only, so a stream fed one block at a time and a file fed in large
+chunks give bit-identical results.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from .conventions import quat_from_rotvec, quat_multiply, quat_normalize, quat_rotate
+from .conventions import cross, quat_from_rotvec, quat_multiply, quat_normalize, quat_rotate
 
 
 def prefix_quat_product(r: np.ndarray) -> np.ndarray:
-    """P_k = r_0 ⊗ r_1 ⊗ … ⊗ r_k for quaternions r of shape (N, 4) (Hillis-Steele scan)."""
+    """P_k = r_0 ⊗ r_1 ⊗ … ⊗ r_k along the second-last axis of r (..., N, 4) (Hillis-Steele scan)."""
     P = np.array(r, dtype=float)
+    n = P.shape[-2]
     step = 1
-    while step < len(P):
-        P[step:] = quat_multiply(P[:-step], P[step:])
+    while step < n:
+        P[..., step:, :] = quat_multiply(P[..., :-step, :], P[..., step:, :])
         step *= 2
     return P
 
@@ -48,12 +51,15 @@ class InertialIntegrator:
         self._dtheta_prev = np.zeros(3)
         self._dv_prev = np.zeros(3)
 
-    def integrate(self, dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Integrate a block of samples.
+    def integrate(self, dtheta: np.ndarray, dv: np.ndarray,
+                  block_samples: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Integrate a chunk of samples.
 
         Parameters
         ----------
         dtheta, dv : (N, 3) gyro angle increments (rad) and velocity increments (m/s), body axes.
+        block_samples : cut the chunk into blocks of this many samples (N must be a multiple);
+            None: one block.
 
         Returns
         -------
@@ -62,18 +68,24 @@ class InertialIntegrator:
         """
         dtheta = np.asarray(dtheta, dtype=float).reshape(-1, 3)
         dv = np.asarray(dv, dtype=float).reshape(-1, 3)
+        n = len(dtheta)
+        M = block_samples or n
+        if n % M:
+            raise ValueError(f"{n} samples are not whole blocks of {M}")
         dtheta_prev = np.concatenate((self._dtheta_prev[None], dtheta[:-1]))
         dv_prev = np.concatenate((self._dv_prev[None], dv[:-1]))
-        phi = dtheta + np.cross(dtheta_prev, dtheta) / 12.0
-        q = quat_multiply(self.q_b_b0, prefix_quat_product(quat_from_rotvec(phi)))
-        q = quat_normalize(q)
-        q_start = np.concatenate((self.q_b_b0[None], q[:-1]))
-        rotated = np.cross(dtheta, dv)
-        dv_body = (dv + 0.5 * rotated + np.cross(dtheta, rotated) / 6.0
-                   + (np.cross(dtheta_prev, dv) + np.cross(dv_prev, dtheta)) / 12.0)
-        alpha = self.alpha_b0 + np.cumsum(quat_rotate(q_start, dv_body), axis=0)
-        self.q_b_b0 = q[-1].copy()
-        self.alpha_b0 = alpha[-1].copy()
+        phi = dtheta + cross(dtheta_prev, dtheta) / 12.0
+        local = prefix_quat_product(quat_from_rotvec(phi).reshape(-1, M, 4))
+        rotated = cross(dtheta, dv)
+        dv_body = (dv + 0.5 * rotated + cross(dtheta, rotated) / 6.0
+                   + (cross(dtheta_prev, dv) + cross(dv_prev, dtheta)) / 12.0).reshape(-1, M, 3)
+        q = np.empty((len(local), M, 4))
+        alpha = np.empty((len(local), M, 3))
+        for k in range(len(local)):
+            q[k] = quat_normalize(quat_multiply(self.q_b_b0, local[k]))
+            q_start = np.concatenate((self.q_b_b0[None], q[k, :-1]))
+            alpha[k] = self.alpha_b0 + np.cumsum(quat_rotate(q_start, dv_body[k]), axis=0)
+            self.q_b_b0, self.alpha_b0 = q[k, -1].copy(), alpha[k, -1].copy()
         self._dtheta_prev = dtheta[-1].copy()
         self._dv_prev = dv[-1].copy()
-        return q, alpha
+        return q.reshape(-1, 4), alpha.reshape(-1, 3)
