@@ -52,6 +52,7 @@ class FineConfig:
     handover: str = "sigma"
     handover_sigma_deg: float = 0.15
     handover_time_s: float = 60.0
+    handover_schedule_s: float = 31.0
     control_interval_s: float = 0.1
     schedule_time_s: tuple[float, ...] = (0.0, 30.0, 31.0, 100.0, 200.0, 300.0)
     level_sigma: tuple[float, ...] = (0.5, 0.5, 0.05, 0.04, 0.03, 0.02)
@@ -98,6 +99,7 @@ def _check(config: Config) -> Config:
         ("output.period_s", o.period_s > 0.0, "must be > 0"),
         ("fine.handover_sigma_deg", f.handover_sigma_deg > 0.0, "must be > 0"),
         ("fine.handover_time_s", f.handover_time_s >= 0.0, "must be ≥ 0"),
+        ("fine.handover_schedule_s", f.handover_schedule_s >= 0.0, "must be ≥ 0"),
         ("fine.control_interval_s", f.control_interval_s > 0.0, "must be > 0"),
         ("fine.stored_data_s", f.stored_data_s >= 0.0, "must be ≥ 0 (0 turns the stored-data passes off)"),
         ("fine.stored_pairs", 0 <= f.stored_pairs <= 100, "must be in 0..100"),

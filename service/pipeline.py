@@ -154,7 +154,8 @@ class AlignmentPipeline:
         self.fine.feed(dalpha, dt_s)
         if not self.fine.active and self._handover_due(elapsed_s):
             solution = self.coarse.solution_at(t_end, q_b_b0)
-            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *self._noise_part(solution))
+            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *self._noise_part(solution),
+                            t_loop_s=self.config.fine.handover_schedule_s)
 
     def _handover_due(self, elapsed_s: float) -> bool:
         f = self.config.fine

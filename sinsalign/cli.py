@@ -11,7 +11,9 @@ import numpy as np
 
 DESCRIPTION = """\
 Real-time initial alignment of a strapdown INS: recursive Optimal-REQUEST (OPREQ) coarse
-alignment in the inertial frame (level from gravity, heading from the Earth's rotation).
+alignment in the inertial frame (level from gravity, heading from the Earth's rotation), then
+compass (gyrocompass-loop) fine alignment with stored-data backward/forward passes.
+Output phases: coarse -> fine -> aligned.
 
 Conventions: navigation frame East-North-Up, body Right-Front-Up, q = [w, x, y, z] of C_b^n,
 heading clockwise from true North in [0, 360). IMU logs are CSV of angle and velocity increments.
@@ -19,7 +21,8 @@ heading clockwise from true North in [0, 360). IMU logs are CSV of angle and vel
 Typical session:
   sinsalign sim seed000-swing --seed 1 --out-dir run1     # simulate a ship on a swing base
   sinsalign replay run1/imu.csv --out run1/results.jsonl   # align it as fast as the CPU goes
-  sinsalign eval seed000-swing --seeds 20                   # Monte Carlo table and plot
+  sinsalign eval seed000-swing --seeds 20 --no-fine         # Monte Carlo table and plot (OPREQ)
+  sinsalign eval seed001-swing --fine                       # seed 001's compass comparison
   sinsalign demo                                            # all of it, one run, summary
 """
 
@@ -28,6 +31,10 @@ def _overrides(args: argparse.Namespace) -> dict:
     alignment = {k: v for k, v in (("solver", args.solver), ("request_rho", args.rho),
                                    ("obs_interval_s", args.obs_interval)) if v is not None}
     out = {"alignment": alignment} if alignment else {}
+    fine = {k: v for k, v in (("enabled", False if args.no_fine else None), ("stored_pairs", args.stored_pairs))
+            if v is not None}
+    if fine:
+        out["fine"] = fine
     if getattr(args, "period", None) is not None:
         out["output"] = {"period_s": args.period}
     return out
@@ -40,6 +47,9 @@ def _add_alignment_options(p: argparse.ArgumentParser) -> None:
                    help="opreq: optimal fading gain (default); request: fixed gain --rho; qmethod: batch OBA")
     g.add_argument("--rho", type=float, help="fixed fading gain of --solver request, e.g. 0.01")
     g.add_argument("--obs-interval", type=float, metavar="S", help="seconds between vector observations (0.1)")
+    g.add_argument("--no-fine", action="store_true", help="OPREQ coarse alignment only (no compass hand-over)")
+    g.add_argument("--stored-pairs", type=int, metavar="N",
+                   help="backward+forward passes over the stored first 80 s (default 3; 0 = none)")
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
@@ -78,13 +88,17 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-    from sinsalign.tools.evaluate import monte_carlo, plot_heading, scenario_table, solver_table
+    from sinsalign.tools.evaluate import fine_table, monte_carlo, plot_fine, plot_heading, scenario_table, solver_table
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    runs = monte_carlo(args.scenario, seeds, {"alignment": _overrides(args).get("alignment", {})})
+    runs = monte_carlo(args.scenario, seeds, _overrides(args))
     text = scenario_table(args.scenario, runs)
     others = None
+    if args.fine:
+        table, fine_runs = fine_table(args.scenario, seeds)
+        text += "\n\n" + table
+        print(f"plot: {plot_fine(args.scenario, fine_runs, out / f'{args.scenario}_fine.png')}")
     if args.solvers:
         table, all_runs = solver_table(args.scenario, seeds)
         text += "\n\n" + table
@@ -189,6 +203,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--solvers", action="store_true", help="also compare OPREQ, q-method and REQUEST gains")
+    p.add_argument("--fine", action="store_true", help="also run seed 001's comparison: OPREQ only, compass alone "
+                   "from 1.5°, OPREQ → compass, each with and without stored data; table and plot")
     p.add_argument("--out-dir", default="out/eval")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_eval)

@@ -191,6 +191,60 @@ def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tupl
     return "\n".join(lines), all_runs
 
 
+FINE_VARIANTS = (("OPREQ only", COARSE_ONLY, None),
+                 ("compass alone from 1.5°", {"fine": {"stored_pairs": 0}}, (0.1, 0.1, 1.5)),
+                 ("compass alone from 1.5°, stored data", {}, (0.1, 0.1, 1.5)),
+                 ("OPREQ → compass", {"fine": {"stored_pairs": 0}}, None),
+                 ("OPREQ → compass, stored data (default)", {}, None))
+"""Seed 001's comparison: (label, configuration overrides, initial error of a compass-alone start)."""
+FINE_BAND_DEG = 0.05
+
+
+def fine_table(name: str, seeds: Sequence[int], progress: bool = True) -> tuple[str, dict[str, list[RunResult]]]:
+    """Markdown table of seed 001's comparison on one scenario (same seeds for every variant)."""
+    scenario = get_scenario(name)
+    late = scenario.eval_windows_s[-1]
+    lines = [f"**seed-001 comparison on {name}** ({len(seeds)} seeds; heading error − limit, °; stored data "
+             f"= 80 s, 3 backward+forward pairs)", "",
+             f"| variant | median settling < {FINE_BAND_DEG}° (s) | mean |err−limit| at 100 s "
+             f"| mean {late[0]:g}–{late[1]:g} s | seed STD | level E | level N | within 2σ |",
+             "|---|---|---|---|---|---|---|---|"]
+    all_runs = {}
+    for label, overrides, initial in FINE_VARIANTS:
+        runs = monte_carlo(name, seeds, overrides, progress=progress, label=label, initial_error_deg=initial)
+        all_runs[label] = runs
+        s = window_stats(runs, late)
+        at_100 = np.mean([abs(r.phi_deg[np.argmin(abs(r.t - 100.0)), 2] - r.limit_deg[2]) for r in runs])
+        lines.append(f"| {label} | {np.median([settling_time_s(r, FINE_BAND_DEG) for r in runs]):.0f} | "
+                     f"{at_100:.4f} | {s.heading_mean:+.4f} | {s.heading_seed_std:.4f} | {s.level_east_mean:+.5f} | "
+                     f"{s.level_north_mean:+.5f} | {100 * honesty(runs).fraction_within_2sigma:.0f} % |")
+    return "\n".join(lines), all_runs
+
+
+def plot_fine(name: str, all_runs: dict[str, list[RunResult]], path: str | Path) -> Path:
+    """PNG: seed-mean |heading error − limit| of each seed-001 variant vs time (log scale)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig, ax = plt.subplots(figsize=(10, 5))
+    for label, runs in all_runs.items():
+        rel = np.abs(np.array([r.phi_deg[:, 2] - r.limit_deg[2] for r in runs]))
+        ax.semilogy(runs[0].t, np.sqrt((rel**2).mean(axis=0)), lw=1.2, label=label)
+    ax.axhline(FINE_BAND_DEG, color="k", lw=0.8, ls="--", label=f"{FINE_BAND_DEG}° band")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("RMS over seeds of |heading error − limit| (°)")
+    ax.set_title(f"{name}: OPREQ, compass, and stored-data repeated navigation")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def plot_heading(name: str, runs: Sequence[RunResult], path: str | Path,
                  others: dict[str, list[RunResult]] | None = None) -> Path:
     """PNG: heading error of every seed vs time, the limit band and the ±2σ envelope."""

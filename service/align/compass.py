@@ -173,12 +173,12 @@ class CompassLoops:
         self._F_cache: dict[tuple, np.ndarray] = {}
 
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float,
-              heading_sigma_rad: float) -> CompassState:
-        """A fresh loop state from the attitude C_b^n (its 1-sigma noise errors seed P)."""
+              heading_sigma_rad: float, t_loop_s: float = 0.0) -> CompassState:
+        """A fresh loop state from the attitude C_b^n (its 1-sigma noise errors seed P), at loop time ``t_loop_s``."""
         P = np.zeros((8, 8))
         P[PE, PE] = P[PN, PN] = tilt_sigma_rad**2
         P[PU, PU] = heading_sigma_rad**2
-        return CompassState(C_b_n @ C_b_b0.T, P=P)
+        return CompassState(C_b_n @ C_b_b0.T, t_loop_s=t_loop_s, P=P)
 
     def _gains(self, state: CompassState) -> tuple[tuple[float, float, float], tuple[float, float, float, float]]:
         return self.gains_at(state.t_loop_s)

@@ -44,9 +44,11 @@ class FineAlignment:
     def active(self) -> bool:
         return self.state is not None
 
-    def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float, heading_sigma_rad: float) -> None:
-        """Hand-over: start the loops from attitude C_b^n (3, 3) with its 1-sigma noise errors."""
-        self.state = self.loops.start(C_b_n, C_b_b0, tilt_sigma_rad, heading_sigma_rad)
+    def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float, heading_sigma_rad: float,
+              t_loop_s: float = 0.0) -> None:
+        """Hand-over: start the loops from attitude C_b^n (3, 3) with its 1-sigma noise errors,
+        entering the gain schedule at ``t_loop_s``."""
+        self.state = self.loops.start(C_b_n, C_b_b0, tilt_sigma_rad, heading_sigma_rad, t_loop_s)
         self._omega_p = self.loops.platform_rate(self.state)
 
     def feed(self, dalpha_b0: np.ndarray, dt_s: float) -> None:
