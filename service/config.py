@@ -50,7 +50,7 @@ class FineConfig:
 
     enabled: bool = True
     handover: str = "sigma"
-    handover_sigma_deg: float = 0.15
+    handover_sigma_deg: float = 0.05
     handover_time_s: float = 60.0
     handover_schedule_s: float = 31.0
     control_interval_s: float = 0.1

@@ -154,21 +154,29 @@ class AlignmentPipeline:
         self.fine.feed(dalpha, dt_s)
         if not self.fine.active and self._handover_due(elapsed_s):
             solution = self.coarse.solution_at(t_end, q_b_b0)
-            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *self._noise_part(solution),
+            noise = self._noise_part(solution.heading_sigma_deg, solution.level_sigma_deg)
+            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *noise,
                             t_loop_s=self.config.fine.handover_schedule_s)
 
     def _handover_due(self, elapsed_s: float) -> bool:
         f = self.config.fine
         if f.handover == "time":
             return elapsed_s >= f.handover_time_s
-        return self.coarse.sigma(elapsed_s)[0] <= f.handover_sigma_deg
+        if self.coarse.solver.n_obs == 0:
+            return False
+        # the noise part only: the bias floor stays whatever the stage, and above the threshold
+        # for a poor gyro it would keep the loops from ever starting
+        return self._noise_part(*self.coarse.sigma(elapsed_s))[1] / DEG <= f.handover_sigma_deg
 
-    def _noise_part(self, solution: AttitudeSolution) -> tuple[float, float]:
-        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit."""
+    def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
+        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit.
+
+        Both are divided by the efficiency factor the reported σ carries, to seed the loops' covariance.
+        """
         grade, site = self.coarse.grade, self.coarse.source.site
         bias_heading, bias_level = bias_limit_rad(grade, site.lat, site.gravity)
-        tilt2 = max((solution.level_sigma_deg * DEG) ** 2 - bias_level**2, 0.0)
-        heading2 = max((solution.heading_sigma_deg * DEG) ** 2 - bias_heading**2, 0.0)
+        tilt2 = max((level_sigma_deg * DEG) ** 2 - bias_level**2, 0.0)
+        heading2 = max((heading_sigma_deg * DEG) ** 2 - bias_heading**2, 0.0)
         return float(np.sqrt(tilt2 / ESTIMATOR_EFFICIENCY)), float(np.sqrt(heading2 / ESTIMATOR_EFFICIENCY))
 
     def _initial_sigma(self) -> tuple[float, float]:

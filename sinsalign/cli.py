@@ -156,12 +156,13 @@ def cmd_demo(args: argparse.Namespace) -> int:
     C_true = dcm_from_quat(truth[:, 4:8])
     C_mean = C_true.mean(axis=0)
     limit = physical_limit(C_mean @ acc_b, C_mean @ gyro_b, scenario.site.lat, scenario.site.gravity) / DEG
-    print("\n   t (s)  heading (°)   error φ_U (°)  error − limit (°)   σ (°)   converged")
+    print("\n   t (s)  phase    heading (°)   error φ_U (°)  error − limit (°)   σ (°)   converged")
     for r in rows:
         if r["t"] in (10, 20, 30, 60, 100, 150, 200):
             k = index[round(r["t"], 6)]
             phi = misalignment(dcm_from_quat(np.array(r["q"])), C_true[k]) / DEG
-            print(f"  {r['t']:6.0f}  {r['heading_deg']:11.4f}  {phi[2]:+14.4f}  {phi[2] - limit[2]:+16.4f}  "
+            print(f"  {r['t']:6.0f}  {r['phase']:7s}  {r['heading_deg']:11.4f}  {phi[2]:+14.4f}  "
+                  f"{phi[2] - limit[2]:+16.4f}  "
                   f"{r['heading_sigma_deg']:7.4f}   {r['converged']}")
     print(f"\nphysical limit of this run (sensor biases): heading {limit[2]:+.4f}°, "
           f"level E {limit[0]:+.4f}° N {limit[1]:+.4f}°")
