@@ -206,7 +206,7 @@ def fine_table(name: str, seeds: Sequence[int], progress: bool = True) -> tuple[
     late = scenario.eval_windows_s[-1]
     lines = [f"**seed-001 comparison on {name}** ({len(seeds)} seeds; heading error − limit, °; stored data "
              f"= 80 s, 3 backward+forward pairs)", "",
-             f"| variant | median settling < {FINE_BAND_DEG}° (s) | mean |err−limit| at 100 s "
+             f"| variant | median settling < {FINE_BAND_DEG}° (s) | mean abs(err−limit) at 100 s "
              f"| mean {late[0]:g}–{late[1]:g} s | seed STD | level E | level N | within 2σ |",
              "|---|---|---|---|---|---|---|---|"]
     all_runs = {}
