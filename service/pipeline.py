@@ -6,6 +6,8 @@ samples at whole multiples of the output period), the phase and the ``converged`
 """
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from ..protocol.results import ResultRecord
@@ -43,14 +45,24 @@ def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, thresh
                         trace_P=float(solution.trace_P), n_obs=solution.n_obs)
 
 
+def _fold_until(solver: RecursiveK, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int,
+                sample: int) -> int:
+    """Fold the prepared observations taken at samples up to ``sample``; returns how many are folded."""
+    upto = int(np.searchsorted(due, sample, side="right"))
+    if upto > folded:
+        solver.fold(dK[folded:upto], trace_R[folded:upto])
+    return upto
+
+
 class AlignmentPipeline:
     """Coarse then fine alignment of a base fixed in position, emitting records at the output epochs.
 
     Samples are processed in canonical blocks of ``block_samples`` (one compass control step),
     counted from the first sample; an incomplete block waits for its last sample. Every block
     therefore sees the same arithmetic whether the samples come one at a time (daemon) or in
-    large chunks (replay), and the results are bit-identical. A record is emitted when the block
-    holding its epoch is complete (a latency of at most one control interval).
+    large chunks (replay), and the results are bit-identical. A record whose epoch sample waits in
+    an incomplete block is computed at once on a scratch copy (same bits, see
+    :meth:`_emit_from_pending`), so every record leaves with the call that brought its sample.
 
     Parameters
     ----------
@@ -87,6 +99,7 @@ class AlignmentPipeline:
         self._pending = np.empty((self.block_samples, 7))
         self._n_pending = 0
         self._epoch_count: int | None = None
+        self._emitted_count = -(2**62)
         self._alpha_step = np.zeros(3)
         self._t_step: float | None = None
 
@@ -118,7 +131,29 @@ class AlignmentPipeline:
         rest = samples[i + whole:]
         self._pending[:len(rest)] = rest
         self._n_pending += len(rest)
+        self._emit_from_pending(records)
         return records
+
+    def _emit_from_pending(self, records: list[ResultRecord]) -> None:
+        """Records whose epoch sample waits in the incomplete block, computed on a scratch copy.
+
+        The scan and the fold give a prefix of a block the same bits as the whole block, so these
+        records equal what the complete block would emit; the block then skips them.
+        """
+        pending = self._pending[:self._n_pending]
+        counts = self._epoch_counts(pending[:, 0])
+        new = np.flatnonzero((np.diff(counts, prepend=self._epoch_count) > 0) & (counts > self._emitted_count))
+        if len(new) == 0:
+            return
+        scratch = copy.deepcopy(self.coarse)
+        elapsed, q_b_b0, alpha = scratch.integrate(pending[:, 0], pending[:, 1:4], pending[:, 4:7])
+        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha)
+        folded = 0
+        for j in new:
+            folded = _fold_until(scratch.solver, due, dK, trace_R, folded, j)
+            records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(pending[j, 0]), q_b_b0[j],
+                                        scratch))
+        self._emitted_count = int(counts[new[-1]])
 
     def _process_blocks(self, samples: np.ndarray, records: list[ResultRecord]) -> None:
         """Whole blocks: integrate them at once, then per block fold the observations, emit, control."""
@@ -130,19 +165,16 @@ class AlignmentPipeline:
         epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
         self._epoch_count = int(counts[-1])
         folded = 0
+        solver = self.coarse.solver
         for end in range(M - 1, len(t), M):
             for j in epochs[(epochs > end - M) & (epochs <= end)]:
-                folded = self._fold_until(due, dK, trace_R, folded, j)
-                records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j]))
-            folded = self._fold_until(due, dK, trace_R, folded, end)
+                folded = _fold_until(solver, due, dK, trace_R, folded, j)
+                if counts[j] > self._emitted_count:
+                    records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
+                                                self.coarse))
+                    self._emitted_count = int(counts[j])
+            folded = _fold_until(solver, due, dK, trace_R, folded, end)
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end])
-
-    def _fold_until(self, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int, sample: int) -> int:
-        """Fold the observations taken at samples up to ``sample``; returns how many are folded."""
-        upto = int(np.searchsorted(due, sample, side="right"))
-        if upto > folded:
-            self.coarse.solver.fold(dK[folded:upto], trace_R[folded:upto])
-        return upto
 
     def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
@@ -182,13 +214,14 @@ class AlignmentPipeline:
     def _initial_sigma(self) -> tuple[float, float]:
         return INITIAL_TILT_SIGMA_DEG * DEG, INITIAL_HEADING_SIGMA_DEG * DEG
 
-    def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray) -> ResultRecord:
+    def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+                coarse: InertialCoarseAlignment) -> ResultRecord:
         threshold = self.config.alignment.converged_heading_sigma_deg
         if self.fine is None or not self.fine.active:
-            return result_record(self.coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
+            return result_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
         C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
         sigma = self.fine.sigma
         solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
-                                    self.coarse.solver.rho, self.coarse.solver.trace_P, self.coarse.solver.n_obs)
+                                    coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
         aligned = self.fine.schedule_complete and sigma.heading_deg <= threshold
         return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)
