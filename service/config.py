@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from ..protocol.keys import UnitKeys
 from .align.compass import GainSchedule
 from .align.solvers import SOLVERS
 
@@ -63,6 +64,51 @@ class FineConfig:
 
 
 HANDOVERS = ("sigma", "time")
+ZENOH_MODES = ("peer", "client", "router")
+
+
+@dataclass(frozen=True, slots=True)
+class SiteConfig:
+    """Where the live IMU sits (a log states its own site in its comment keys)."""
+
+    lat_deg: float = 32.0
+    lon_deg: float = 118.0
+    height_m: float = 0.0
+
+
+@dataclass(frozen=True, slots=True)
+class ImuConfig:
+    """The live IMU: nominal sample rate (a log states its own)."""
+
+    rate_hz: float = 200.0
+
+
+@dataclass(frozen=True, slots=True)
+class SerialConfig:
+    """The serial input (RS-422 IMU, or a pty on a bench); an empty path means no serial input."""
+
+    path: str = ""
+    baud: int = 921600
+    reconnect_max_s: float = 2.0
+
+
+@dataclass(frozen=True, slots=True)
+class ZenohConfig:
+    """The Zenoh session and keys. Default: peer on loopback, multicast scouting off."""
+
+    mode: str = "peer"
+    listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+    connect: tuple[str, ...] = ()
+    config_file: str = ""
+    prefix: str = "sinsalign"
+    unit: str = "unit1"
+    imu_input: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class DaemonConfig:
+    status_period_s: float = 1.0
+    record_path: str = ""
 
 
 @dataclass(frozen=True, slots=True)
@@ -75,6 +121,11 @@ class Config:
     sensor: SensorConfig = field(default_factory=SensorConfig)
     alignment: AlignmentConfig = field(default_factory=AlignmentConfig)
     fine: FineConfig = field(default_factory=FineConfig)
+    site: SiteConfig = field(default_factory=SiteConfig)
+    imu: ImuConfig = field(default_factory=ImuConfig)
+    serial: SerialConfig = field(default_factory=SerialConfig)
+    zenoh: ZenohConfig = field(default_factory=ZenohConfig)
+    daemon: DaemonConfig = field(default_factory=DaemonConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
 
     def as_dict(self) -> dict[str, Any]:
@@ -85,6 +136,14 @@ def _check(config: Config) -> Config:
     a, s, o, f = config.alignment, config.sensor, config.output, config.fine
     if a.solver not in SOLVERS:
         raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(SOLVERS)}")
+    z = config.zenoh
+    if z.mode not in ZENOH_MODES:
+        raise ConfigError(f"zenoh.mode: {z.mode!r} is not one of {', '.join(ZENOH_MODES)}")
+    for key, text in (("zenoh.prefix", z.prefix), ("zenoh.unit", z.unit)):
+        try:
+            UnitKeys(z.prefix if key == "zenoh.prefix" else "p", text if key == "zenoh.unit" else "u")
+        except ValueError as exc:
+            raise ConfigError(f"{key}: {exc}") from None
     if f.handover not in HANDOVERS:
         raise ConfigError(f"fine.handover: {f.handover!r} is not one of {', '.join(HANDOVERS)}")
     try:
@@ -104,6 +163,11 @@ def _check(config: Config) -> Config:
         ("fine.stored_data_s", f.stored_data_s >= 0.0, "must be ≥ 0 (0 turns the stored-data passes off)"),
         ("fine.stored_pairs", 0 <= f.stored_pairs <= 100, "must be in 0..100"),
         ("fine.live_pass_steps", f.live_pass_steps >= 1, "must be ≥ 1"),
+        ("site.lat_deg", -90.0 < config.site.lat_deg < 90.0, "must be in (-90, 90) (gyrocompassing needs Ω cos L)"),
+        ("imu.rate_hz", 0.0 < config.imu.rate_hz <= 10000.0, "must be in (0, 10000]"),
+        ("serial.baud", 0 < config.serial.baud <= 16_000_000, "must be in 1..16000000"),
+        ("serial.reconnect_max_s", config.serial.reconnect_max_s > 0.0, "must be > 0"),
+        ("daemon.status_period_s", config.daemon.status_period_s > 0.0, "must be > 0"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
     for key, ok, rule in checks:
         if not ok:
@@ -124,7 +188,7 @@ def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
             except OverflowError:
                 raise ConfigError(f"{section}.{key}: {value} is out of range") from None
         if isinstance(default, tuple):
-            value = _number_list(f"{section}.{key}", value)
+            value = (_string_list if "str" in str(known[key].type) else _number_list)(f"{section}.{key}", value)
         if type(value) is not type(default):
             raise ConfigError(f"{section}.{key}: expected {type(default).__name__}, got {value!r}")
         if isinstance(value, float) and not math.isfinite(value):
@@ -144,6 +208,12 @@ def _number_list(key: str, value: Any) -> tuple[float, ...]:
     if not all(math.isfinite(v) for v in numbers):
         raise ConfigError(f"{key}: must hold finite numbers, got {value!r}")
     return numbers
+
+
+def _string_list(key: str, value: Any) -> tuple[str, ...]:
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f"{key}: expected a list of strings, got {value!r}")
+    return tuple(value)
 
 
 def config_from_mapping(data: dict[str, Any], base: Config | None = None) -> Config:

@@ -1,0 +1,117 @@
+"""msgpack messages on the Zenoh keys (protocol/README.md lists every field).
+
+Every message is a map with ``"v"`` (schema version, 1) first. Decoders check the shape and the
+types and raise :class:`MessageError` with a reason; they never execute or evaluate anything.
+
+- IMU in (``…/imu``): v, seq (int), t (s), dtheta [3] (rad), dv [3] (m/s), status (int).
+- aiding in (``…/aid/<kind>``): v, kind, t (s), values (list of numbers) — reserved for the aided modes.
+- attitude out (``…/attitude``): v, unit and the pinned result fields (t, phase, q, pitch_deg,
+  roll_deg, heading_deg, heading_sigma_deg, level_sigma_deg, converged, rho, trace_P, n_obs).
+- status out (``…/status``, 1 Hz): v, unit, uptime_s, health, phase, t_last, last_error, counters {name: int}.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import msgpack
+
+from .results import ResultRecord
+
+VERSION = 1
+HEALTH = ("starting", "ok", "degraded", "no_input")
+
+
+class MessageError(ValueError):
+    """A message that does not follow its schema; the text says what is wrong."""
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    seq: int
+    t: float
+    dtheta: tuple[float, float, float]
+    dv: tuple[float, float, float]
+    status: int
+
+
+def pack(message: dict[str, Any]) -> bytes:
+    return msgpack.packb(message, use_bin_type=True)
+
+
+def unpack_map(data: bytes) -> dict[str, Any]:
+    """A msgpack map with a supported version, else MessageError."""
+    try:
+        message = msgpack.unpackb(data, raw=False, strict_map_key=True)
+    except Exception as exc:   # msgpack raises several types for corrupt input
+        raise MessageError(f"not msgpack: {type(exc).__name__}") from None
+    if not isinstance(message, dict):
+        raise MessageError(f"expected a map, got {type(message).__name__}")
+    if message.get("v") != VERSION:
+        raise MessageError(f"unsupported schema version {message.get('v')!r} (this build reads {VERSION})")
+    return message
+
+
+def _number(message: dict[str, Any], key: str) -> float:
+    value = message.get(key)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise MessageError(f"{key}: expected a number, got {value!r:.40}")
+    if not math.isfinite(value):
+        raise MessageError(f"{key}: not finite")
+    return float(value)
+
+
+def _integer(message: dict[str, Any], key: str, low: int, high: int) -> int:
+    value = message.get(key)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise MessageError(f"{key}: expected an integer in {low}..{high}, got {value!r:.40}")
+    return value
+
+
+def _vector(message: dict[str, Any], key: str) -> tuple[float, float, float]:
+    value = message.get(key)
+    if not isinstance(value, list) or len(value) != 3:
+        raise MessageError(f"{key}: expected a list of 3 numbers")
+    return tuple(_number({key: v}, key) for v in value)
+
+
+def imu_message(sample: ImuSample) -> dict[str, Any]:
+    return {"v": VERSION, "seq": sample.seq, "t": sample.t, "dtheta": list(sample.dtheta), "dv": list(sample.dv),
+            "status": sample.status}
+
+
+def decode_imu(data: bytes) -> ImuSample:
+    m = unpack_map(data)
+    return ImuSample(_integer(m, "seq", 0, 2**32 - 1), _number(m, "t"), _vector(m, "dtheta"), _vector(m, "dv"),
+                     _integer(m, "status", 0, 2**32 - 1))
+
+
+def attitude_message(unit: str, record: ResultRecord) -> dict[str, Any]:
+    d = record.as_dict()
+    d["q"] = list(record.q)
+    if not math.isfinite(d["trace_P"]):
+        d["trace_P"] = None
+    return {"v": VERSION, "unit": unit, **d}
+
+
+def decode_attitude(data: bytes) -> dict[str, Any]:
+    m = unpack_map(data)
+    for key in ("t", "heading_deg", "pitch_deg", "roll_deg", "heading_sigma_deg", "level_sigma_deg"):
+        _number(m, key)
+    if not isinstance(m.get("q"), list) or len(m["q"]) != 4 or not isinstance(m.get("phase"), str):
+        raise MessageError("attitude: q must be 4 numbers and phase a string")
+    return m
+
+
+def status_message(unit: str, uptime_s: float, health: str, phase: str, t_last: float | None,
+                   last_error: str | None, counters: dict[str, int]) -> dict[str, Any]:
+    return {"v": VERSION, "unit": unit, "uptime_s": uptime_s, "health": health, "phase": phase, "t_last": t_last,
+            "last_error": last_error, "counters": counters}
+
+
+def decode_status(data: bytes) -> dict[str, Any]:
+    m = unpack_map(data)
+    if m.get("health") not in HEALTH or not isinstance(m.get("counters"), dict):
+        raise MessageError("status: health must be one of " + ", ".join(HEALTH) + " and counters a map")
+    return m

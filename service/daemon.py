@@ -1,0 +1,258 @@
+"""The alignment daemon: inputs → decoder → sample checks → pipeline → Zenoh publishers.
+
+One loop thread does everything in order, driven by the IMU frames' own timestamps: read what
+arrived (serial port and/or the Zenoh IMU topic), decode, check every sample (time must move
+forward, values finite), feed the pipeline, publish each attitude record as it comes out, and
+publish the status at ``daemon.status_period_s`` of wall time. Every drop is counted in the
+status; nothing received over the wire is executed or changes the configuration. The Zenoh side
+also holds a liveliness token and answers a read-only query with the current state and the
+effective configuration.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import queue
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TextIO
+
+import numpy as np
+import zenoh
+
+from ..protocol import messages
+from ..protocol.imu_log import IMU_COLUMNS, write_header, write_rows
+from ..protocol.keys import UnitKeys
+from ..protocol.results import ResultRecord
+from ..protocol.sequence import SequenceTracker
+from ..protocol.serial_frame import MSG_IMU, FrameDecoder, decode_imu
+from .align.conventions import DEG
+from .align.earth import Site
+from .config import Config
+from .pipeline import AlignmentPipeline
+from .serial_port import SerialPort
+
+log = logging.getLogger("sinsalign.daemon")
+NO_INPUT_S = 1.0
+INBOX_LIMIT = 100_000
+MSGPACK = zenoh.Encoding("application/msgpack")
+
+
+@dataclass(slots=True)
+class SampleCounters:
+    """Checks on decoded samples, whatever their input."""
+
+    samples_in: int = 0
+    samples_used: int = 0
+    time_not_increasing: int = 0
+    saturated: int = 0
+    status_flagged: int = 0
+    bad_messages: int = 0
+    inbox_overflow: int = 0
+    records_published: int = 0
+
+    def as_dict(self) -> dict[str, int]:
+        return {name: getattr(self, name) for name in self.__slots__}
+
+
+class Daemon:
+    """Runs until :meth:`stop`; build it with an open Zenoh session and an optional serial port."""
+
+    def __init__(self, config: Config, session: zenoh.Session, serial_port: SerialPort | None = None) -> None:
+        self.config = config
+        self.session = session
+        self.serial = serial_port
+        self.keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
+        s = config.site
+        self.pipeline = AlignmentPipeline(config, Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m),
+                                          config.imu.rate_hz, live=True)
+        self.decoder = FrameDecoder()
+        self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
+        self.counters = SampleCounters()
+        self.last_error: str | None = None
+        self.last_record: ResultRecord | None = None
+        self.t_last: float | None = None
+        self._started = time.monotonic()
+        self._last_input = None
+        self._errors_at_status = 0
+        self._stop = threading.Event()
+        self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self._recording: TextIO | None = self._open_recording(config.daemon.record_path)
+        self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
+        self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
+        self._token = session.liveliness().declare_token(self.keys.alive)
+        self._queryable = session.declare_queryable(self.keys.state, self._on_query)
+        self._imu_sub = (session.declare_subscriber(self.keys.imu, self._on_imu)
+                         if config.zenoh.imu_input else None)
+        self._next_status = time.monotonic()
+
+    # ---- inputs -------------------------------------------------------------------------
+    def _on_imu(self, sample: zenoh.Sample) -> None:
+        # a Zenoh thread: only hand the bytes over; decoding happens in the loop
+        if self._inbox.qsize() >= INBOX_LIMIT:
+            self.counters.inbox_overflow += 1
+            return
+        self._inbox.put(sample.payload.to_bytes())
+
+    def _read_inputs(self) -> list[tuple[float, tuple, tuple, int, bool]]:
+        """Decoded samples (t, Δθ, Δv, status, saturated) from every input, in arrival order."""
+        out = []
+        if self.serial is not None:
+            for frame in self.decoder.feed(self.serial.read()):
+                if frame.msg_type == MSG_IMU:
+                    m = decode_imu(frame)
+                    out.append((m.t, m.dtheta, m.dv, m.status, m.saturated))
+        elif self._imu_sub is not None:
+            try:
+                first = self._inbox.get(timeout=0.02)
+            except queue.Empty:
+                return out
+            for data in self._drain(first):
+                try:
+                    m = messages.decode_imu(data)
+                except messages.MessageError as exc:
+                    self.counters.bad_messages += 1
+                    self._error(f"IMU message dropped: {exc}")
+                    continue
+                if self.zenoh_sequence.accept(m.seq):
+                    out.append((m.t, m.dtheta, m.dv, m.status, False))
+        return out
+
+    def _drain(self, first: bytes) -> list[bytes]:
+        items = [first]
+        while True:
+            try:
+                items.append(self._inbox.get_nowait())
+            except queue.Empty:
+                return items
+
+    # ---- loop ---------------------------------------------------------------------------
+    def step(self) -> list[ResultRecord]:
+        """One pass of the loop: read, check, align, publish; returns the records published."""
+        samples = self._read_inputs()
+        records: list[ResultRecord] = []
+        if samples:
+            t, dtheta, dv = self._checked(samples)
+            if len(t):
+                self._record_raw(t, dtheta, dv)
+                records = self.pipeline.process(t, dtheta, dv)
+                for record in records:
+                    self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
+                    self.last_record = record
+                self.counters.records_published += len(records)
+        now = time.monotonic()
+        if now >= self._next_status:
+            self._next_status = now + self.config.daemon.status_period_s
+            self._status_pub.put(messages.pack(self.status()))
+            if self._recording is not None:
+                self._recording.flush()
+        return records
+
+    def _checked(self, samples: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.counters.samples_in += len(samples)
+        self._last_input = time.monotonic()
+        keep = []
+        for t, dtheta, dv, status, saturated in samples:
+            if self.t_last is not None and not t > self.t_last:
+                self.counters.time_not_increasing += 1
+                self._error(f"sample at t = {t:.6f} s does not follow t = {self.t_last:.6f} s: dropped")
+                continue
+            if status:
+                self.counters.status_flagged += 1
+            if saturated:
+                self.counters.saturated += 1
+            keep.append((t, *dtheta, *dv))
+            self.t_last = t
+        self.counters.samples_used += len(keep)
+        rows = np.array(keep, dtype=float).reshape(-1, 7)
+        return rows[:, 0], rows[:, 1:4], rows[:, 4:7]
+
+    def run(self) -> None:
+        """Loop until :meth:`stop` (or SIGINT/SIGTERM in ``sinsalign serve``), then close cleanly."""
+        log.info("serving %s (attitude on %s, status on %s)", self._inputs_text(), self.keys.attitude,
+                 self.keys.status)
+        try:
+            while not self._stop.is_set():
+                self.step()
+        finally:
+            self.close()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def close(self) -> None:
+        self._status_pub.put(messages.pack(self.status()))
+        for entity in (self._imu_sub, self._queryable, self._token, self._status_pub, self._attitude_pub):
+            if entity is not None:
+                entity.undeclare()
+        if self.serial is not None:
+            self.serial.close()
+        if self._recording is not None:
+            self._recording.close()
+            self._recording = None
+        log.info("stopped after %d samples, %d records", self.counters.samples_used,
+                 self.counters.records_published)
+
+    # ---- status, state, recording -----------------------------------------------------------
+    def all_counters(self) -> dict[str, int]:
+        counters = {**self.decoder.all_counters(), **self.counters.as_dict(),
+                    **self.zenoh_sequence.counters("zenoh_seq_")}
+        if self.serial is not None:
+            counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects}
+        return counters
+
+    def _error_count(self, counters: dict[str, int]) -> int:
+        good = {"frames", "samples_in", "samples_used", "records_published", "serial_reconnects", "unknown_type"}
+        return sum(v for k, v in counters.items() if k not in good)
+
+    def status(self) -> dict:
+        counters = self.all_counters()
+        errors = self._error_count(counters)
+        if self._last_input is None:
+            health = "starting" if time.monotonic() - self._started < NO_INPUT_S else "no_input"
+        elif time.monotonic() - self._last_input > NO_INPUT_S:
+            health = "no_input"
+        else:
+            health = "degraded" if errors > self._errors_at_status else "ok"
+        self._errors_at_status = errors
+        last_error = self.last_error or (self.serial.last_error if self.serial is not None else None)
+        phase = self.last_record.phase if self.last_record is not None else "coarse"
+        return messages.status_message(self.keys.unit, time.monotonic() - self._started, health, phase, self.t_last,
+                                       last_error, counters)
+
+    def _on_query(self, query: zenoh.Query) -> None:
+        state = {"v": messages.VERSION, "unit": self.keys.unit, "status": self.status(),
+                 "attitude": (messages.attitude_message(self.keys.unit, self.last_record)
+                              if self.last_record is not None else None),
+                 "config": self.config.as_dict()}
+        query.reply(self.keys.state, messages.pack(state), encoding=MSGPACK)
+
+    def _error(self, text: str) -> None:
+        if text != self.last_error:
+            log.warning(text)
+        self.last_error = text
+
+    def _inputs_text(self) -> str:
+        inputs = [f"serial {self.serial.path} @ {self.serial.baud} Bd"] if self.serial is not None else []
+        if self._imu_sub is not None:
+            inputs.append(f"Zenoh {self.keys.imu}")
+        return " + ".join(inputs) or "no input"
+
+    def _open_recording(self, path: str) -> TextIO | None:
+        if not path:
+            return None
+        # owner-only: a recording of the raw input is the customer's data
+        fd = os.open(Path(path), os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        stream = os.fdopen(fd, "w", encoding="utf-8")
+        s, sensor = self.config.site, self.config.sensor
+        write_header(stream, {"lat_deg": s.lat_deg, "lon_deg": s.lon_deg, "height_m": s.height_m,
+                              "rate_hz": self.config.imu.rate_hz, "gyro_bias_deg_h": sensor.gyro_bias_deg_h,
+                              "gyro_arw_deg_rth": sensor.gyro_arw_deg_rth, "acc_bias_ug": sensor.acc_bias_ug,
+                              "acc_vrw_ug_rthz": sensor.acc_vrw_ug_rthz}, IMU_COLUMNS)
+        return stream
+
+    def _record_raw(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> None:
+        if self._recording is not None:
+            write_rows(self._recording, np.column_stack((t, dtheta, dv)))
