@@ -179,6 +179,11 @@ class Daemon:
         finally:
             self.close()
 
+    @property
+    def attitude_subscribed(self) -> bool:
+        """Some subscriber matches the attitude key (``sinsalign demo`` waits for its watch client)."""
+        return self._attitude_pub.matching_status.matching
+
     def stop(self) -> None:
         self._stop.set()
 

@@ -103,6 +103,10 @@ def pty_pair():
 
 
 def run_daemon(daemon: Daemon) -> threading.Thread:
+    """Start the loop once the subscriber's declarations have reached the daemon (no early record lost)."""
+    deadline = time.monotonic() + 5.0
+    while not daemon.attitude_subscribed and time.monotonic() < deadline:
+        time.sleep(0.01)
     thread = threading.Thread(target=daemon.run, daemon=True)
     thread.start()
     return thread
@@ -168,8 +172,12 @@ def test_queryable_answers_state_and_configuration_and_liveliness_is_declared(tm
     daemon = Daemon(config, open_session(config.zenoh))
     subscriber = Subscriber(port, daemon.keys)
     thread = run_daemon(daemon)
-    alive = [r.ok.key_expr for r in subscriber.session.liveliness().get(daemon.keys.alive, timeout=2.0)
-             if r.ok is not None]
+    alive = []
+    deadline = time.monotonic() + 5.0
+    while not alive and time.monotonic() < deadline:   # declarations reach a new peer a moment after open()
+        alive = [r.ok.key_expr for r in subscriber.session.liveliness().get(daemon.keys.alive, timeout=1.0)
+                 if r.ok is not None]
+        time.sleep(0.05)
     replies = [r.ok for r in subscriber.session.get(daemon.keys.state, timeout=2.0) if r.ok is not None]
     daemon.stop()
     thread.join(timeout=5)
