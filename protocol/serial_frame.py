@@ -9,8 +9,13 @@ Little-endian, self-synchronising::
     4      2     payload length N (u16)
     6      2     sequence counter (u16, +1 per frame, wraps)
     8      8     timestamp (u64, ns on the IMU clock, end of the sample interval)
-    16     N     payload
-    16+N   4     CRC-32 (zlib / IEEE 802.3) of bytes 2 .. 16+N-1 (everything after the sync word)
+    16     2     header check: the low 16 bits of CRC-32 of bytes 2 .. 15
+    18     N     payload
+    18+N   4     CRC-32 (zlib / IEEE 802.3) of bytes 2 .. 18+N-1 (everything after the sync word)
+
+The header check lets the decoder reject a false sync word at once: without it a corrupt length
+field would make it wait for up to a maximal frame of bytes before the CRC could say no, and
+the good frames behind it would be late.
 
 IMU payload (type 1, N = 28): Δθ x, y, z as i32 in units of 2⁻³¹ rad, Δv x, y, z as i32 in units
 of 2⁻²⁴ m/s (body axes Right-Front-Up), then a u32 status / built-in-test word (0 = healthy).
@@ -29,7 +34,7 @@ from .sequence import SequenceTracker
 
 SYNC = b"\xaa\x55"
 VERSION = 1
-HEADER = struct.Struct("<2sBBHHQ")
+HEADER = struct.Struct("<2sBBHHQH")
 CRC = struct.Struct("<I")
 MSG_IMU = 1
 MSG_AIDING = 2
@@ -69,7 +74,8 @@ class ImuMessage:
 
 def encode_frame(msg_type: int, seq: int, time_ns: int, payload: bytes) -> bytes:
     """A complete frame (sync word to CRC)."""
-    body = HEADER.pack(SYNC, VERSION, msg_type, len(payload), seq & 0xFFFF, time_ns)[2:] + payload
+    head = struct.pack("<BBHHQ", VERSION, msg_type, len(payload), seq & 0xFFFF, time_ns)
+    body = head + struct.pack("<H", zlib.crc32(head) & 0xFFFF) + payload
     return SYNC + body + CRC.pack(zlib.crc32(body))
 
 
@@ -105,6 +111,7 @@ class DecoderCounters:
 
     frames: int = 0
     bytes_skipped: int = 0       # bytes outside any frame (garbage, resynchronisation)
+    bad_header: int = 0          # a sync word whose header check fails (false sync, corrupt header)
     bad_crc: int = 0
     bad_length: int = 0          # a length field no message type allows
     bad_version: int = 0
@@ -144,7 +151,11 @@ class FrameDecoder:
             pos = start
             if len(buf) - pos < HEADER.size:
                 break
-            _, version, msg_type, length, seq, time_ns = HEADER.unpack_from(buf, pos)
+            _, version, msg_type, length, seq, time_ns, check = HEADER.unpack_from(buf, pos)
+            if zlib.crc32(memoryview(buf)[pos + 2:pos + HEADER.size - 2]) & 0xFFFF != check:
+                self.counters.bad_header += 1
+                pos += 1
+                continue
             if version != VERSION:
                 self.counters.bad_version += 1
                 pos += 1

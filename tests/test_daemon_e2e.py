@@ -134,7 +134,7 @@ def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_repla
     counters = subscriber.status[-1]["counters"]
     # no frame lost, none dropped: the counters prove it
     assert counters["frames"] == n == counters["samples_used"] == player.frames_written
-    assert sum(counters[k] for k in ("bytes_skipped", "bad_crc", "bad_length", "seq_gaps", "seq_repeats",
+    assert sum(counters[k] for k in ("bytes_skipped", "bad_header", "bad_crc", "bad_length", "seq_gaps", "seq_repeats",
                                      "time_not_increasing")) == 0
     assert len(subscriber.attitude) == int(SECONDS / config.output.period_s)
     assert subscriber.status[-1]["health"] in ("ok", "no_input")
