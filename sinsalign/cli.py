@@ -2,12 +2,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
-
-import numpy as np
 
 DESCRIPTION = """\
 Real-time initial alignment of a strapdown INS: recursive Optimal-REQUEST (OPREQ) coarse
@@ -110,7 +107,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
-def cmd_bench(args: argparse.Namespace) -> int:
+def cmd_benchmark(args: argparse.Namespace) -> int:
     from sinsalign.tools.benchmark import bench_latency, bench_replay, bench_stream_memory
     r = bench_replay(duration_s=args.seconds)
     print(f"replay (CSV → JSONL) of {r.samples} frames: {r.frames_per_s:,.0f} frames/s; "
@@ -131,41 +128,123 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
-    from sinsalign.protocol.imu_log import TRUTH_COLUMNS, open_imu_log, read_header, read_rows
-    from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
-    from sinsalign.service.align.sensor_model import physical_limit
-    from sinsalign.service.config import Config
-    from sinsalign.tools.replay import replay
-    from sinsalign.tools.sim.files import simulated_biases, write_simulation
-    from sinsalign.tools.sim.scenarios import get_scenario
+    from sinsalign.tools.demo import run_demo, summary
+    speed = 1.0 if args.realtime else args.speed
+    print(f"live bench: virtual IMU ({args.scenario}, seed {args.seed}) → pty → daemon → Zenoh (peer, loopback) "
+          f"→ watch, at ×{speed:g} real time", file=sys.stderr)
+    result = run_demo(args.scenario, args.seed, speed, Path(args.out_dir), show=not args.no_watch,
+                      duration_s=args.duration)
+    print("\n" + summary(result, args.scenario))
+    return 0
 
-    out = Path(args.out_dir)
-    scenario = get_scenario("seed000-swing")
-    print(f"1/3 simulating {scenario.name} (seed {args.seed}): {scenario.description}")
-    files = write_simulation(scenario, args.seed, out)
-    print(f"2/3 replaying {files.imu_csv} → {out / 'results.jsonl'}")
-    replay(files.imu_csv, out / "results.jsonl", Config())
-    print("3/3 comparing with the truth")
-    with open(out / "results.jsonl") as f:
-        rows = [json.loads(line) for line in f]
-    with open(files.truth_csv) as f:
-        _, consumed = read_header(f, str(files.truth_csv), TRUTH_COLUMNS, required=())
-        truth = np.concatenate(list(read_rows(f, str(files.truth_csv), consumed + 1, TRUTH_COLUMNS)))
-    index = {round(t, 6): k for k, t in enumerate(truth[:, 0])}
-    gyro_b, acc_b = simulated_biases(open_imu_log(files.imu_csv).header)
-    C_true = dcm_from_quat(truth[:, 4:8])
-    C_mean = C_true.mean(axis=0)
-    limit = physical_limit(C_mean @ acc_b, C_mean @ gyro_b, scenario.site.lat, scenario.site.gravity) / DEG
-    print("\n   t (s)  phase    heading (°)   error φ_U (°)  error − limit (°)   σ (°)   converged")
-    for r in rows:
-        if r["t"] in (10, 20, 30, 60, 100, 150, 200):
-            k = index[round(r["t"], 6)]
-            phi = misalignment(dcm_from_quat(np.array(r["q"])), C_true[k]) / DEG
-            print(f"  {r['t']:6.0f}  {r['phase']:7s}  {r['heading_deg']:11.4f}  {phi[2]:+14.4f}  "
-                  f"{phi[2] - limit[2]:+16.4f}  "
-                  f"{r['heading_sigma_deg']:7.4f}   {r['converged']}")
-    print(f"\nphysical limit of this run (sensor biases): heading {limit[2]:+.4f}°, "
-          f"level E {limit[0]:+.4f}° N {limit[1]:+.4f}°")
+
+def _zenoh_overrides(args: argparse.Namespace) -> dict:
+    z = {k: v for k, v in (("mode", args.mode), ("connect", args.connect), ("listen", args.listen),
+                           ("config_file", args.zenoh_config), ("unit", args.unit), ("prefix", args.prefix))
+         if v is not None}
+    return {"zenoh": z} if z else {}
+
+
+def _add_zenoh_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("Zenoh (defaults: peer on loopback tcp/127.0.0.1:7447, multicast scouting off)")
+    g.add_argument("-m", "--mode", choices=("peer", "client", "router"), help="session mode")
+    g.add_argument("-e", "--connect", action="append", metavar="ENDPOINT", help="endpoint to connect to, e.g. "
+                   "tcp/10.0.0.5:7447 (repeatable)")
+    g.add_argument("-l", "--listen", action="append", metavar="ENDPOINT", help="endpoint to listen on (repeatable)")
+    g.add_argument("--zenoh-config", metavar="FILE", help="a standard Zenoh JSON5 configuration as the base")
+    g.add_argument("--unit", help="unit id in the keys <prefix>/<unit>/… (default unit1)")
+    g.add_argument("--prefix", help="key prefix (default sinsalign)")
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    import logging
+    import signal
+
+    from sinsalign.service.config import ConfigError, load_config
+    from sinsalign.service.daemon import Daemon
+    from sinsalign.service.serial_port import SerialPort
+    from sinsalign.service.zenoh_session import open_session
+    overrides = {**_overrides(args), **_zenoh_overrides(args)}
+    serial_table = {k: v for k, v in (("path", args.serial), ("baud", args.baud)) if v is not None}
+    if serial_table:
+        overrides["serial"] = serial_table
+    if args.zenoh_imu:
+        overrides.setdefault("zenoh", {})["imu_input"] = True
+    if args.record:
+        overrides["daemon"] = {"record_path": args.record}
+    config = load_config(args.config, overrides)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
+                        stream=sys.stderr)
+    if not config.serial.path and not config.zenoh.imu_input:
+        raise ConfigError("no input: give --serial PATH (serial.path) or --zenoh-imu (zenoh.imu_input = true)")
+    port = SerialPort(config.serial.path, config.serial.baud, config.serial.reconnect_max_s) \
+        if config.serial.path else None
+    daemon = Daemon(config, open_session(config.zenoh), port)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: daemon.stop())
+    daemon.run()
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    import os
+
+    from sinsalign.protocol.imu_log import open_imu_log
+    from sinsalign.tools.sim.imu import simulate
+    from sinsalign.tools.sim.scenarios import get_scenario
+    from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
+    pty = None
+    if args.port:
+        fd = os.open(args.port, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        name = args.port
+    else:
+        pty = PtyPair()
+        fd, name = pty.master_fd, pty.port_name
+    if args.log:
+        chunks = open_imu_log(args.log).blocks()
+        what = args.log
+    else:
+        s = get_scenario(args.scenario)
+        duration = args.duration or s.duration_s
+        chunks = ((c.t, c.dtheta, c.dv) for c in simulate(s.motion, s.site, s.errors, s.rate_hz, duration, args.seed))
+        what = f"{args.scenario} seed {args.seed} (site lat {s.site.lat * 57.29577951308232:.3f}°, "\
+               f"{s.rate_hz:g} Hz: serve with --config giving [site] and [imu] to match)"
+    print(f"virtual IMU on {name}: playing {what} at ×{args.speed:g} in {args.start_delay:g} s", file=sys.stderr)
+    time.sleep(args.start_delay)   # the reader's open() flushes what came before it
+    player = FramePlayer(fd, args.speed)
+    try:
+        player.play_chunks(chunks)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        print(f"wrote {player.frames_written} frames", file=sys.stderr)
+        time.sleep(0.5)   # let the reader drain before the pty disappears
+        if pty is not None:
+            pty.close()
+        else:
+            os.close(fd)
+    return 0
+
+
+def cmd_watch(args: argparse.Namespace) -> int:
+    from sinsalign.protocol.keys import UnitKeys
+    from sinsalign.service.config import load_config
+    from sinsalign.service.zenoh_session import open_session
+    from sinsalign.tools.watch import WatchClient, watch
+    overrides = _zenoh_overrides(args)
+    z = overrides.setdefault("zenoh", {})
+    z.setdefault("listen", [])
+    z.setdefault("connect", ["tcp/127.0.0.1:7447"])
+    config = load_config(args.config, overrides)
+    session = open_session(config.zenoh)
+    client = WatchClient(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit))
+    try:
+        watch(client, args.duration)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        client.close()
+        session.close()
     return 0
 
 
@@ -210,23 +289,67 @@ def build_parser() -> argparse.ArgumentParser:
     _add_alignment_options(p)
     p.set_defaults(func=cmd_eval)
 
-    p = sub.add_parser("bench", help="benchmarks: replay frames/s, per-sample latency, RSS over a long stream",
+    p = sub.add_parser("benchmark", help="benchmarks: replay frames/s, per-sample latency, RSS over a long stream",
                        description="Numbers, not pass/fail. --stream-hours 24 streams a day of 200-Hz data "
                        "generated on the fly and reports RSS every simulated hour.")
     p.add_argument("--seconds", type=float, default=600.0, help="length of the replayed log (default 600 s)")
     p.add_argument("--stream-hours", type=float, default=0.0, help="hours of streamed data (0 = skip; try 24)")
+    p.set_defaults(func=cmd_benchmark)
+
+    p = sub.add_parser("serve", help="run the daemon: serial and/or Zenoh IMU in, attitude and status out",
+                       description="Read IMU frames from a serial port (RS-422 adapter or a bench pty) and/or the "
+                       "Zenoh key <prefix>/<unit>/imu, align, and publish <prefix>/<unit>/attitude (msgpack, every "
+                       "output epoch) and <prefix>/<unit>/status (1 Hz, counters and health); hold the liveliness "
+                       "token <prefix>/<unit>/alive and answer <prefix>/<unit>/state. Stops cleanly on SIGINT or "
+                       "SIGTERM. Example: sinsalign serve --serial /dev/ttyUSB0 --baud 921600 --config bench.toml")
+    p.add_argument("--serial", metavar="PATH", help="serial device, e.g. /dev/ttyUSB0 or a pty from sinsalign bench")
+    p.add_argument("--baud", type=int, help="baud rate (default 921600; a pty ignores it)")
+    p.add_argument("--zenoh-imu", action="store_true", help="also take IMU samples from <prefix>/<unit>/imu")
+    p.add_argument("--record", metavar="CSV", help="record the decoded input as an IMU log (owner-only file)")
+    p.add_argument("--period", type=float, metavar="S", help="attitude output period (default 1 s)")
+    _add_alignment_options(p)
+    _add_zenoh_options(p)
+    p.set_defaults(func=cmd_serve)
+
+    p = sub.add_parser("bench", help="virtual IMU: play a scenario or a log as serial frames into a pty or a port",
+                       description="Create a pseudo-terminal pair (or open --port) and write IMU frames (the "
+                       "protocol/README.md frame) at ×SPEED real time. Start 'sinsalign serve --serial NAME' with "
+                       "the printed NAME within --start-delay seconds.")
+    p.add_argument("--scenario", default="seed000-swing", help="simulated scenario (sinsalign sim --list)")
+    p.add_argument("--log", metavar="IMU.csv", help="play this IMU log instead of a scenario")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--duration", type=float, metavar="S", help="scenario length (default: the scenario's)")
+    p.add_argument("--speed", type=float, default=1.0, help="× real time (default 1)")
+    p.add_argument("--port", metavar="PATH", help="write to this serial device instead of a new pty")
+    p.add_argument("--start-delay", type=float, default=3.0, metavar="S", help="wait before playing (default 3 s)")
     p.set_defaults(func=cmd_bench)
 
-    p = sub.add_parser("demo", help="the main job: simulate a seed-000 swing run, replay it, report against truth",
-                       description="Simulate the seed-000 swing-base scenario, replay it through the alignment and "
-                       "print the heading error against the simulated truth and the run's physical limit.")
+    p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
+                       description="Subscribe to <prefix>/*/attitude and status and show them live. Connects to "
+                       "tcp/127.0.0.1:7447 unless -e/-l/--zenoh-config say otherwise.")
+    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: Ctrl-C)")
+    p.add_argument("--config", metavar="FILE", help="TOML configuration ([zenoh] table)")
+    _add_zenoh_options(p)
+    p.set_defaults(func=cmd_watch)
+
+    p = sub.add_parser("demo", help="the main job: live bench (virtual IMU → pty → daemon → Zenoh → watch)",
+                       description="Play a simulated scenario as serial frames into a pty, run the daemon on it "
+                       "(Zenoh peer on loopback, multicast off), watch it live, and end with the heading error "
+                       "against the simulated truth and the run's physical limit.")
+    p.add_argument("--scenario", default="seed000-swing")
     p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--out-dir", default="out/demo")
+    p.add_argument("--speed", type=float, default=10.0, help="× real time (default 10: 200 s in 20 s)")
+    p.add_argument("--realtime", action="store_true", help="play at real time (same as --speed 1)")
+    p.add_argument("--duration", type=float, metavar="S", help="scenario length (default: the scenario's)")
+    p.add_argument("--no-watch", action="store_true", help="no live view, summary only")
+    p.add_argument("--out-dir", default="out/demo", help="the daemon's recording of its input goes here")
     p.set_defaults(func=cmd_demo)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    from zenoh import ZError
+
     from sinsalign.protocol.imu_log import LogFormatError
     from sinsalign.service.config import ConfigError
     parser = build_parser()
@@ -236,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         return args.func(args)
-    except (LogFormatError, ConfigError, KeyError, OSError) as exc:
+    except (LogFormatError, ConfigError, KeyError, OSError, ZError) as exc:
         message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
         print(f"sinsalign {args.command}: error: {message}", file=sys.stderr)
         return 2

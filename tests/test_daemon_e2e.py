@@ -185,3 +185,17 @@ def test_queryable_answers_state_and_configuration_and_liveliness_is_declared(tm
     assert [str(k) for k in alive] == [daemon.keys.alive]
     state = messages.unpack_map(replies[0].payload.to_bytes())
     assert state["config"]["zenoh"]["unit"] == "bench" and state["status"]["health"] in ("starting", "no_input")
+
+
+def test_demo_command_runs_the_live_bench_end_to_end(tmp_path, capsys):
+    from sinsalign.cli import main
+    assert main(["demo", "--no-watch", "--duration", "20", "--speed", "20", "--out-dir", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "frames received 4000, used 4000; drops and faults: none" in out
+    assert (tmp_path / "recorded.csv").exists()
+
+
+def test_serve_without_an_input_is_a_clear_configuration_error(capsys):
+    from sinsalign.cli import main
+    assert main(["serve", "-l", f"tcp/127.0.0.1:{free_port()}"]) == 2
+    assert "no input" in capsys.readouterr().err
