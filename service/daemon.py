@@ -52,6 +52,7 @@ class SampleCounters:
     bad_messages: int = 0
     inbox_overflow: int = 0
     records_published: int = 0
+    internal_errors: int = 0
 
     def as_dict(self) -> dict[str, int]:
         return {name: getattr(self, name) for name in self.__slots__}
@@ -175,7 +176,13 @@ class Daemon:
                  self.keys.status)
         try:
             while not self._stop.is_set():
-                self.step()
+                try:
+                    self.step()
+                except Exception as exc:   # a bug must not take the daemon down: count, log, go on
+                    self.counters.internal_errors += 1
+                    self._error(f"internal error: {type(exc).__name__}: {exc}")
+                    log.exception("internal error in the loop (counted; the loop goes on)")
+                    time.sleep(0.01)
         finally:
             self.close()
 

@@ -6,8 +6,6 @@ samples at whole multiples of the output period), the phase and the ``converged`
 """
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 
 from ..protocol.results import ResultRecord
@@ -41,7 +39,7 @@ def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, thresh
     return ResultRecord(t=t_epoch, phase=phase, q=q, pitch_deg=float(pitch / DEG), roll_deg=float(roll / DEG),
                         heading_deg=heading_deg if heading_deg < 360.0 else 0.0,
                         heading_sigma_deg=solution.heading_sigma_deg, level_sigma_deg=solution.level_sigma_deg,
-                        converged=solution.heading_sigma_deg <= threshold_deg, rho=float(solution.rho),
+                        converged=bool(solution.heading_sigma_deg <= threshold_deg), rho=float(solution.rho),
                         trace_P=float(solution.trace_P), n_obs=solution.n_obs)
 
 
@@ -145,7 +143,7 @@ class AlignmentPipeline:
         new = np.flatnonzero((np.diff(counts, prepend=self._epoch_count) > 0) & (counts > self._emitted_count))
         if len(new) == 0:
             return
-        scratch = copy.deepcopy(self.coarse)
+        scratch = self.coarse.scratch()
         elapsed, q_b_b0, alpha = scratch.integrate(pending[:, 0], pending[:, 1:4], pending[:, 4:7])
         due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha)
         folded = 0

@@ -115,6 +115,16 @@ def cmd_benchmark(args: argparse.Namespace) -> int:
     lat = bench_latency()
     print("live path, one sample per call: p50 {p50_us:.0f} µs, p99 {p99_us:.0f} µs, max {max_us:.0f} µs "
           "(budget at 200 Hz: {budget_200hz_us:.0f} µs)".format(**lat))
+    if args.live:
+        from sinsalign.tools.benchmark import bench_live
+        every = bench_live(args.live_seconds)
+        print(f"live daemon (own process) ← pty at 200 Hz, attitude for every sample: frame written → attitude "
+              f"received p50 {every.latency_p50_ms:.2f} ms, p99 {every.latency_p99_ms:.2f} ms, max "
+              f"{every.latency_max_ms:.2f} ms ({every.received}/{every.frames} received); daemon CPU "
+              f"{100 * every.cpu_share:.1f} % of a core; flat out it kept up with {every.max_ingest_frames_s:,.0f} "
+              f"frames/s")
+        default = bench_live(args.live_seconds, flat_out_s=0.5, output_period_s=1.0)
+        print(f"same at the default 1-Hz attitude output: daemon CPU {100 * default.cpu_share:.1f} % of a core")
     if args.stream_hours > 0:
         start = time.perf_counter()
         samples = bench_stream_memory(args.stream_hours)
@@ -294,6 +304,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "generated on the fly and reports RSS every simulated hour.")
     p.add_argument("--seconds", type=float, default=600.0, help="length of the replayed log (default 600 s)")
     p.add_argument("--stream-hours", type=float, default=0.0, help="hours of streamed data (0 = skip; try 24)")
+    p.add_argument("--live", action="store_true", help="also the live daemon: latency frame → attitude, CPU, ingest")
+    p.add_argument("--live-seconds", type=float, default=20.0, help="seconds of 200-Hz frames for --live")
     p.set_defaults(func=cmd_benchmark)
 
     p = sub.add_parser("serve", help="run the daemon: serial and/or Zenoh IMU in, attitude and status out",

@@ -71,6 +71,10 @@ class FramePlayer:
         while k < len(t):
             if stop is not None and stop.is_set():
                 return
+            ahead_s = (float(t[k]) - t0_data) / self.speed - (time.monotonic() - t0_wall)
+            if ahead_s > 0:   # frame k is not due yet
+                time.sleep(min(ahead_s, 0.05))
+                continue
             due_data = t0_data + (time.monotonic() - t0_wall) * self.speed
             end = max(k + 1, int(np.searchsorted(t, due_data, side="right")))
             write_all(self.fd, b"".join(encode_imu(self.seq + i, float(t[k + i]), dtheta[k + i], dv[k + i])
@@ -78,10 +82,6 @@ class FramePlayer:
             self.seq += end - k
             self.frames_written += end - k
             k = end
-            if k < len(t):
-                wait = (float(t[k]) - t0_data) / self.speed - (time.monotonic() - t0_wall)
-                if wait > 0:
-                    time.sleep(min(wait, 0.05))
 
     def play_chunks(self, chunks: Iterable, stop: object = None) -> None:
         """Play chunks of (t, Δθ, Δv) arrays (simulator chunks or log blocks) back to back, one clock."""

@@ -7,6 +7,7 @@ vector pair from the observation source and fold it into the recursive K-matrix 
 """
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -105,6 +106,17 @@ class InertialCoarseAlignment:
         mu = self.grade.observation_variance(elapsed_s[due], self._gravity, self.disturbance_velocity_mps)
         self._cached = None
         return (due, *self.solver.prepare(b, r, mu))
+
+    def scratch(self) -> InertialCoarseAlignment:
+        """A copy to run ahead on and throw away: the state the updates replace is copied, nothing else.
+
+        ``integrate``, ``observe`` and the solver's ``fold`` assign new arrays rather than write into
+        the old ones, so shallow copies of the object, its integrator and its solver are independent.
+        """
+        clone = copy.copy(self)
+        clone.integrator = copy.copy(self.integrator)
+        clone.solver = copy.copy(self.solver)
+        return clone
 
     @property
     def elapsed_s(self) -> float:

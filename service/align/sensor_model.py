@@ -17,7 +17,7 @@ from .earth import OMEGA_IE
 ESTIMATOR_EFFICIENCY = 2.0
 """Variance of the recursive OPREQ heading over the least-squares floor, measured by Monte Carlo
 (``sinsalign eval``: seed-000 swing and turntable scenarios, ≈1.4² at 100-300 s)."""
-SIGMA_UNKNOWN_DEG = 360.0 / np.sqrt(12.0)
+SIGMA_UNKNOWN_DEG = float(360.0 / np.sqrt(12.0))
 """1-sigma of an angle that is uniformly unknown over a full turn (103.9°): the cap of every σ."""
 
 
