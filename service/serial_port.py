@@ -7,6 +7,7 @@ disconnect is counted, and the port is reopened with a growing back-off (0.1 s d
 from __future__ import annotations
 
 import contextlib
+import logging
 import time
 
 import serial
@@ -15,6 +16,7 @@ from ..protocol.serial_frame import CRC, HEADER, IMU_PAYLOAD
 
 FRAME_BYTES = HEADER.size + IMU_PAYLOAD.size + CRC.size
 READ_TIMEOUT_S = 0.02
+log = logging.getLogger("sinsalign.serial")
 
 
 class SerialPort:
@@ -39,12 +41,16 @@ class SerialPort:
         try:
             self._port = serial.Serial(self.path, self.baud, timeout=READ_TIMEOUT_S)
         except (serial.SerialException, OSError, ValueError) as exc:
-            self.last_error = f"serial {self.path}: {exc}"
+            text = f"serial {self.path}: {exc}"
+            if text != self.last_error:
+                log.warning("%s (retrying, back-off up to %g s)", text, self.reconnect_max_s)
+            self.last_error = text
             self._next_attempt = time.monotonic() + self._backoff_s
             self._backoff_s = min(2.0 * self._backoff_s, self.reconnect_max_s)
             return
         if self._opened_once:
             self.reconnects += 1
+            log.info("serial %s reopened", self.path)
         self._opened_once = True
         self._backoff_s = 0.1
 
@@ -61,6 +67,7 @@ class SerialPort:
         except (serial.SerialException, OSError) as exc:
             self.disconnects += 1
             self.last_error = f"serial {self.path} lost: {exc}"
+            log.warning(self.last_error)
             self.close()
             self._next_attempt = time.monotonic() + self._backoff_s
             return b""
