@@ -80,7 +80,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     if last is not None:
         print(f"t = {last.t:g} s: heading {last.heading_deg:.4f}° ± {last.heading_sigma_deg:.4f}°, "
               f"pitch {last.pitch_deg:.4f}°, roll {last.roll_deg:.4f}° (level σ {last.level_sigma_deg:.4f}°), "
-              f"converged: {last.converged}", file=sys.stderr)
+              f"phase {last.phase}, converged: {last.converged}", file=sys.stderr)
     return 0
 
 
