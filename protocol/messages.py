@@ -4,7 +4,9 @@ Every message is a map with ``"v"`` (schema version, 1) first. Decoders check th
 types and raise :class:`MessageError` with a reason; they never execute or evaluate anything.
 
 - IMU in (``…/imu``): v, seq (int), t (s), dtheta [3] (rad), dv [3] (m/s), status (int).
-- aiding in (``…/aid/<kind>``): v, kind, t (s), values (list of numbers) — reserved for the aided modes.
+- aiding in (``…/aid/<kind>``): v, seq, t (s) and the fields of the kind's pinned aiding log:
+  ``odo`` v_b [3] (m/s, body axes); ``gnss`` lat_deg, lon_deg, h_m, v_enu [3]; ``master`` q [4]
+  (the master's C_b^n), v_enu [3], lat_deg, lon_deg, h_m.
 - attitude out (``…/attitude``): v, unit and the pinned result fields (t, phase, q, pitch_deg,
   roll_deg, heading_deg, heading_sigma_deg, level_sigma_deg, converged, rho, trace_P, n_obs).
 - status out (``…/status``, 1 Hz): v, unit, uptime_s, health, phase, t_last, last_error, counters {name: int}.
@@ -85,6 +87,41 @@ def decode_imu(data: bytes) -> ImuSample:
     m = unpack_map(data)
     return ImuSample(_integer(m, "seq", 0, 2**32 - 1), _number(m, "t"), _vector(m, "dtheta"), _vector(m, "dv"),
                      _integer(m, "status", 0, 2**32 - 1))
+
+
+AIDING_FIELDS = {"odo": {"v_b": 3}, "gnss": {"lat_deg": 1, "lon_deg": 1, "h_m": 1, "v_enu": 3},
+                 "master": {"q": 4, "v_enu": 3, "lat_deg": 1, "lon_deg": 1, "h_m": 1}}
+"""Fields of each aiding kind and how many numbers each holds (1 = a scalar)."""
+
+
+@dataclass(frozen=True, slots=True)
+class AidingSample:
+    kind: str
+    seq: int
+    t: float
+    values: dict[str, tuple[float, ...]]
+
+
+def aiding_message(sample: AidingSample) -> dict[str, Any]:
+    fields = {k: (v[0] if AIDING_FIELDS[sample.kind][k] == 1 else list(v)) for k, v in sample.values.items()}
+    return {"v": VERSION, "seq": sample.seq, "t": sample.t, **fields}
+
+
+def decode_aiding(kind: str, data: bytes) -> AidingSample:
+    """An aiding message of ``kind`` (the last chunk of its key), checked against the kind's fields."""
+    if kind not in AIDING_FIELDS:
+        raise MessageError(f"unknown aiding kind {kind!r} (known: {', '.join(AIDING_FIELDS)})")
+    m = unpack_map(data)
+    values = {}
+    for name, count in AIDING_FIELDS[kind].items():
+        if count == 1:
+            values[name] = (_number(m, name),)
+            continue
+        value = m.get(name)
+        if not isinstance(value, list) or len(value) != count:
+            raise MessageError(f"{name}: expected a list of {count} numbers")
+        values[name] = tuple(_number({name: v}, name) for v in value)
+    return AidingSample(kind, _integer(m, "seq", 0, 2**32 - 1), _number(m, "t"), values)
 
 
 def attitude_message(unit: str, record: ResultRecord) -> dict[str, Any]:

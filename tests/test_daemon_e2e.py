@@ -199,3 +199,27 @@ def test_serve_without_an_input_is_a_clear_configuration_error(capsys):
     from sinsalign.cli import main
     assert main(["serve", "-l", f"tcp/127.0.0.1:{free_port()}"]) == 2
     assert "no input" in capsys.readouterr().err
+
+
+def test_sigterm_stops_serve_cleanly_and_flushes_the_recording(tmp_path, pty_pair):
+    import os
+    import signal
+    import subprocess
+    import sys
+    port = free_port()
+    record = tmp_path / "raw.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "sinsalign", "serve", "--serial", pty_pair.port_name, "-l",
+                             f"tcp/127.0.0.1:{port}", "--record", str(record)], stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 20.0
+    while not record.exists() and time.monotonic() < deadline:   # the file appears once the daemon is up
+        time.sleep(0.05)
+    time.sleep(0.3)
+    chunk = samples(5.0)[0]
+    FramePlayer(pty_pair.master_fd, speed=50.0).play(chunk.t[:1000], chunk.dtheta[:1000], chunk.dv[:1000])
+    time.sleep(0.5)
+    os.kill(proc.pid, signal.SIGTERM)
+    _, err = proc.communicate(timeout=15)
+    assert proc.returncode == 0, err
+    assert "stopped after 1000 samples" in err
+    rows = [line for line in record.read_text().splitlines() if line and not line.startswith(("#", "t,"))]
+    assert len(rows) == 1000

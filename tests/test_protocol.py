@@ -160,10 +160,23 @@ def test_malformed_messages_give_a_clear_reason(message, reason):
         messages.decode_imu(message)
 
 
+def test_aiding_messages_of_each_kind_round_trip_and_are_checked():
+    gnss = messages.AidingSample("gnss", 3, 12.5, {"lat_deg": (30.0,), "lon_deg": (114.0,), "h_m": (500.0,),
+                                                    "v_enu": (1.0, 50.0, 0.0)})
+    assert messages.decode_aiding("gnss", messages.pack(messages.aiding_message(gnss))) == gnss
+    odo = messages.AidingSample("odo", 0, 1.0, {"v_b": (0.0, 20.0, 0.0)})
+    assert messages.decode_aiding("odo", messages.pack(messages.aiding_message(odo))) == odo
+    with pytest.raises(messages.MessageError, match="v_b"):
+        messages.decode_aiding("odo", messages.pack({"v": 1, "seq": 0, "t": 1.0, "v_b": [0, 20]}))
+    with pytest.raises(messages.MessageError, match="unknown aiding kind"):
+        messages.decode_aiding("lidar", messages.pack({"v": 1}))
+
+
 @settings(max_examples=300, deadline=None)
 @given(st.binary(max_size=300))
 def test_fuzz_message_decoders_raise_only_message_errors(data):
-    for decode in (messages.decode_imu, messages.decode_attitude, messages.decode_status):
+    for decode in (messages.decode_imu, messages.decode_attitude, messages.decode_status,
+                   lambda d: messages.decode_aiding("master", d)):
         with contextlib.suppress(messages.MessageError):
             decode(data)
 
