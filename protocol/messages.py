@@ -23,6 +23,13 @@ from .results import ResultRecord
 
 VERSION = 1
 HEALTH = ("starting", "ok", "degraded", "no_input")
+NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_published", "serial_reconnects",
+                        "unknown_type", "samples_bridged"})
+"""Status counters that count work, not faults; every other counter counts a drop or a fault."""
+
+
+def fault_count(counters: dict[str, int]) -> int:
+    return sum(v for k, v in counters.items() if k not in NOT_FAULTS)
 
 
 class MessageError(ValueError):

@@ -109,6 +109,7 @@ class ZenohConfig:
 class DaemonConfig:
     status_period_s: float = 1.0
     record_path: str = ""
+    max_bridge_samples: int = 5
 
 
 @dataclass(frozen=True, slots=True)
@@ -168,6 +169,7 @@ def _check(config: Config) -> Config:
         ("serial.baud", 0 < config.serial.baud <= 16_000_000, "must be in 1..16000000"),
         ("serial.reconnect_max_s", config.serial.reconnect_max_s > 0.0, "must be > 0"),
         ("daemon.status_period_s", config.daemon.status_period_s > 0.0, "must be > 0"),
+        ("daemon.max_bridge_samples", 0 <= config.daemon.max_bridge_samples <= 1000, "must be in 0..1000"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
     for key, ok, rule in checks:
         if not ok:

@@ -32,6 +32,7 @@ from .align.conventions import DEG
 from .align.earth import Site
 from .config import Config
 from .pipeline import AlignmentPipeline
+from .sample_gate import SampleGate
 from .serial_port import SerialPort
 
 log = logging.getLogger("sinsalign.daemon")
@@ -46,9 +47,6 @@ class SampleCounters:
 
     samples_in: int = 0
     samples_used: int = 0
-    time_not_increasing: int = 0
-    saturated: int = 0
-    status_flagged: int = 0
     bad_messages: int = 0
     inbox_overflow: int = 0
     records_published: int = 0
@@ -67,8 +65,9 @@ class Daemon:
         self.serial = serial_port
         self.keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
         s = config.site
-        self.pipeline = AlignmentPipeline(config, Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m),
-                                          config.imu.rate_hz, live=True)
+        self.site = Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m)
+        self.pipeline = AlignmentPipeline(config, self.site, config.imu.rate_hz, live=True)
+        self.gate = SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples)
         self.decoder = FrameDecoder()
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.counters = SampleCounters()
@@ -135,14 +134,23 @@ class Daemon:
         samples = self._read_inputs()
         records: list[ResultRecord] = []
         if samples:
-            t, dtheta, dv = self._checked(samples)
-            if len(t):
+            self.counters.samples_in += len(samples)
+            self._last_input = time.monotonic()
+            for segment in self.gate.admit(samples):
+                if segment.restart:
+                    self._error(segment.reason)
+                    self.pipeline = AlignmentPipeline(self.config, self.site, self.config.imu.rate_hz, live=True)
+                t, dtheta, dv = segment.rows[:, 0], segment.rows[:, 1:4], segment.rows[:, 4:7]
+                self.counters.samples_used += len(t)
+                self.t_last = float(t[-1])
                 self._record_raw(t, dtheta, dv)
-                records = self.pipeline.process(t, dtheta, dv)
-                for record in records:
-                    self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
-                    self.last_record = record
-                self.counters.records_published += len(records)
+                records += self.pipeline.process(t, dtheta, dv)
+            if self.gate.last_error and self.gate.last_error != self.last_error:
+                self._error(self.gate.last_error)
+            for record in records:
+                self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
+                self.last_record = record
+            self.counters.records_published += len(records)
         now = time.monotonic()
         if now >= self._next_status:
             self._next_status = now + self.config.daemon.status_period_s
@@ -150,25 +158,6 @@ class Daemon:
             if self._recording is not None:
                 self._recording.flush()
         return records
-
-    def _checked(self, samples: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        self.counters.samples_in += len(samples)
-        self._last_input = time.monotonic()
-        keep = []
-        for t, dtheta, dv, status, saturated in samples:
-            if self.t_last is not None and not t > self.t_last:
-                self.counters.time_not_increasing += 1
-                self._error(f"sample at t = {t:.6f} s does not follow t = {self.t_last:.6f} s: dropped")
-                continue
-            if status:
-                self.counters.status_flagged += 1
-            if saturated:
-                self.counters.saturated += 1
-            keep.append((t, *dtheta, *dv))
-            self.t_last = t
-        self.counters.samples_used += len(keep)
-        rows = np.array(keep, dtype=float).reshape(-1, 7)
-        return rows[:, 0], rows[:, 1:4], rows[:, 4:7]
 
     def run(self) -> None:
         """Loop until :meth:`stop` (or SIGINT/SIGTERM in ``sinsalign serve``), then close cleanly."""
@@ -209,19 +198,15 @@ class Daemon:
 
     # ---- status, state, recording -----------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
-        counters = {**self.decoder.all_counters(), **self.counters.as_dict(),
+        counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
                     **self.zenoh_sequence.counters("zenoh_seq_")}
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects}
         return counters
 
-    def _error_count(self, counters: dict[str, int]) -> int:
-        good = {"frames", "samples_in", "samples_used", "records_published", "serial_reconnects", "unknown_type"}
-        return sum(v for k, v in counters.items() if k not in good)
-
     def status(self) -> dict:
         counters = self.all_counters()
-        errors = self._error_count(counters)
+        errors = messages.fault_count(counters)
         if self._last_input is None:
             health = "starting" if time.monotonic() - self._started < NO_INPUT_S else "no_input"
         elif time.monotonic() - self._last_input > NO_INPUT_S:

@@ -115,8 +115,7 @@ def summary(result: DemoResult, scenario_name: str) -> str:
                      f"{result.phi_deg[k, 2] - result.limit_deg[2]:+16.4f}  {result.sigma_deg[k]:7.4f}   "
                      f"{bool(result.converged[k])}")
     c = result.counters
-    odd = ", ".join(f"{k} {v}" for k, v in c.items()
-                    if v and k not in ("frames", "samples_in", "samples_used", "records_published"))
+    odd = ", ".join(f"{k} {v}" for k, v in c.items() if v and k not in messages.NOT_FAULTS)
     lines += ["", f"{scenario_name}: physical limit heading {result.limit_deg[2]:+.4f}°, level E "
               f"{result.limit_deg[0]:+.4f}° N {result.limit_deg[1]:+.4f}°",
               f"frames received {c.get('frames', 0)}, used {c.get('samples_used', 0)}; "

@@ -86,13 +86,12 @@ class WatchClient:
 
 ROWS = ("alive", "t (s)", "phase", "heading (°)", "heading σ (°)", "pitch (°)", "roll (°)", "level σ (°)",
         "converged", "health", "frames", "drops and faults", "last error")
-GOOD_COUNTERS = ("frames", "samples_in", "samples_used", "records_published", "serial_reconnects", "unknown_type")
 
 
 def _column(view: UnitView) -> list[str]:
     a, s = view.attitude or {}, view.status or {}
     counters = s.get("counters", {})
-    drops = sum(v for k, v in counters.items() if k not in GOOD_COUNTERS) + view.bad_messages
+    drops = messages.fault_count(counters) + view.bad_messages
     return ["yes" if view.alive else "no", _num(a.get("t"), ".1f"), a.get("phase", "-"),
             _num(a.get("heading_deg"), ".4f"), _num(a.get("heading_sigma_deg"), ".4f"), _num(a.get("pitch_deg"), ".4f"),
             _num(a.get("roll_deg"), ".4f"), _num(a.get("level_sigma_deg"), ".4f"), str(a.get("converged", "-")),
