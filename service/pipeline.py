@@ -6,6 +6,8 @@ samples at whole multiples of the output period), the phase and the ``converged`
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from ..protocol.results import ResultRecord
@@ -216,7 +218,9 @@ class AlignmentPipeline:
                 coarse: InertialCoarseAlignment) -> ResultRecord:
         threshold = self.config.alignment.converged_heading_sigma_deg
         if self.fine is None or not self.fine.active:
-            return result_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
+            record = result_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
+            # without a fine stage, a converged coarse solution is the end of the alignment
+            return replace(record, phase="aligned") if self.fine is None and record.converged else record
         C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
         sigma = self.fine.sigma
         solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,

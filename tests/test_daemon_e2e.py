@@ -8,18 +8,16 @@ every frame.
 from __future__ import annotations
 
 import json
-import socket
-import threading
 import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 import zenoh
+from daemon_harness import SCENARIO, SECONDS, Subscriber, daemon_config, free_port, run_daemon
 from sinsalign.protocol import messages
-from sinsalign.protocol.keys import UnitKeys
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
-from sinsalign.service.config import Config, config_from_mapping
+from sinsalign.service.config import Config
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.serial_port import SerialPort
 from sinsalign.service.zenoh_session import open_session
@@ -27,55 +25,6 @@ from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
-
-SCENARIO = "seed000-swing"
-SECONDS = 40.0
-
-
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def daemon_config(tmp_path: Path, port: int, **sections) -> Config:
-    scenario = get_scenario(SCENARIO)
-    grade = scenario.grade.datasheet()
-    base = {"site": {"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG},
-            "imu": {"rate_hz": scenario.rate_hz}, "sensor": grade,
-            "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"], "unit": "bench"},
-            "daemon": {"record_path": str(tmp_path / "recorded.csv"), "status_period_s": 0.2},
-            "output": {"period_s": 0.5}}
-    for name, table in sections.items():
-        base[name] = {**base.get(name, {}), **table}
-    return config_from_mapping(base)
-
-
-class Subscriber:
-    """A separate Zenoh session (a client program) collecting attitude and status messages."""
-
-    def __init__(self, port: int, keys: UnitKeys) -> None:
-        conf = zenoh.Config()
-        conf.insert_json5("mode", '"peer"')
-        conf.insert_json5("scouting/multicast/enabled", "false")
-        conf.insert_json5("scouting/delay", "0")
-        conf.insert_json5("connect/endpoints", f'["tcp/127.0.0.1:{port}"]')
-        conf.insert_json5("listen/endpoints", "[]")
-        self.session = zenoh.open(conf)
-        self.attitude: list[dict] = []
-        self.status: list[dict] = []
-        self._subs = [self.session.declare_subscriber(keys.attitude, lambda s: self.attitude.append(
-                          messages.decode_attitude(s.payload.to_bytes()))),
-                      self.session.declare_subscriber(keys.status, lambda s: self.status.append(
-                          messages.decode_status(s.payload.to_bytes())))]
-
-    def wait_for(self, n_attitude: int, timeout_s: float = 20.0) -> None:
-        deadline = time.monotonic() + timeout_s
-        while len(self.attitude) < n_attitude and time.monotonic() < deadline:
-            time.sleep(0.02)
-
-    def close(self) -> None:
-        self.session.close()
 
 
 def samples(seconds: float = SECONDS):
@@ -100,16 +49,6 @@ def pty_pair():
     pair = PtyPair()
     yield pair
     pair.close()
-
-
-def run_daemon(daemon: Daemon) -> threading.Thread:
-    """Start the loop once the subscriber's declarations have reached the daemon (no early record lost)."""
-    deadline = time.monotonic() + 5.0
-    while not daemon.attitude_subscribed and time.monotonic() < deadline:
-        time.sleep(0.01)
-    thread = threading.Thread(target=daemon.run, daemon=True)
-    thread.start()
-    return thread
 
 
 def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_replay(tmp_path, pty_pair):
