@@ -236,6 +236,22 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_fuzz(args: argparse.Namespace) -> int:
+    from sinsalign.tools.fuzz import fuzz_messages, fuzz_serial
+    serial = fuzz_serial(args.inputs, args.seed)
+    print(f"serial decoder: {serial.inputs:,} random inputs ({serial.bytes_fed / 1e6:.1f} MB) in "
+          f"{serial.seconds:.1f} s, "
+          f"{serial.frames_out:,} frames out, {serial.escaped} exceptions escaped")
+    print("  counters: " + ", ".join(f"{k} {v:,}" for k, v in serial.counters.items() if v))
+    msgs = fuzz_messages(max(args.inputs // 5, 1), args.seed)
+    print(f"msgpack decoders: {msgs.inputs:,} inputs × 4 decoders in {msgs.seconds:.1f} s, "
+          f"{msgs.counters['rejected']:,} rejected with a reason, {msgs.escaped} exceptions escaped")
+    for report in (serial, msgs):
+        if report.first_failure:
+            print(f"first failure: {report.first_failure}", file=sys.stderr)
+    return 1 if serial.escaped or msgs.escaped else 0
+
+
 def cmd_watch(args: argparse.Namespace) -> int:
     from sinsalign.protocol.keys import UnitKeys
     from sinsalign.service.config import load_config
@@ -335,6 +351,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", metavar="PATH", help="write to this serial device instead of a new pty")
     p.add_argument("--start-delay", type=float, default=3.0, metavar="S", help="wait before playing (default 3 s)")
     p.set_defaults(func=cmd_bench)
+
+    p = sub.add_parser("fuzz", help="long random-input run of the serial and msgpack decoders",
+                       description="Feed random bytes, mutated and truncated frames into the serial decoder and "
+                       "random or mutated msgpack into the message decoders; exit 1 if any exception escapes.")
+    p.add_argument("--inputs", type=int, default=1_000_000, help="random inputs to the serial decoder (1e6)")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=cmd_fuzz)
 
     p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
                        description="Subscribe to <prefix>/*/attitude and status and show them live. Connects to "
