@@ -68,6 +68,21 @@ ZENOH_MODES = ("peer", "client", "router")
 
 
 @dataclass(frozen=True, slots=True)
+class DisturbanceConfig:
+    """Detection of a base that moves although the alignment assumes it fixed in position."""
+
+    enabled: bool = True
+    velocity_threshold_mps: float = 0.5
+    tilt_jump_deg: float = 0.1
+    check_interval_s: float = 1.0
+    hold_s: float = 10.0
+    action: str = "restart"
+
+
+DISTURBANCE_ACTIONS = ("restart", "report")
+
+
+@dataclass(frozen=True, slots=True)
 class SiteConfig:
     """Where the live IMU sits (a log states its own site in its comment keys)."""
 
@@ -122,6 +137,7 @@ class Config:
     sensor: SensorConfig = field(default_factory=SensorConfig)
     alignment: AlignmentConfig = field(default_factory=AlignmentConfig)
     fine: FineConfig = field(default_factory=FineConfig)
+    disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
     site: SiteConfig = field(default_factory=SiteConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
     serial: SerialConfig = field(default_factory=SerialConfig)
@@ -145,6 +161,9 @@ def _check(config: Config) -> Config:
             UnitKeys(z.prefix if key == "zenoh.prefix" else "p", text if key == "zenoh.unit" else "u")
         except ValueError as exc:
             raise ConfigError(f"{key}: {exc}") from None
+    if config.disturbance.action not in DISTURBANCE_ACTIONS:
+        raise ConfigError(f"disturbance.action: {config.disturbance.action!r} is not one of "
+                          f"{', '.join(DISTURBANCE_ACTIONS)}")
     if f.handover not in HANDOVERS:
         raise ConfigError(f"fine.handover: {f.handover!r} is not one of {', '.join(HANDOVERS)}")
     try:
@@ -169,6 +188,10 @@ def _check(config: Config) -> Config:
         ("serial.baud", 0 < config.serial.baud <= 16_000_000, "must be in 1..16000000"),
         ("serial.reconnect_max_s", config.serial.reconnect_max_s > 0.0, "must be > 0"),
         ("daemon.status_period_s", config.daemon.status_period_s > 0.0, "must be > 0"),
+        ("disturbance.velocity_threshold_mps", config.disturbance.velocity_threshold_mps > 0.0, "must be > 0"),
+        ("disturbance.tilt_jump_deg", config.disturbance.tilt_jump_deg > 0.0, "must be > 0"),
+        ("disturbance.check_interval_s", config.disturbance.check_interval_s > 0.0, "must be > 0"),
+        ("disturbance.hold_s", config.disturbance.hold_s >= 0.0, "must be ≥ 0"),
         ("daemon.max_bridge_samples", 0 <= config.daemon.max_bridge_samples <= 1000, "must be in 0..1000"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
     for key, ok, rule in checks:

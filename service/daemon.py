@@ -72,6 +72,8 @@ class Daemon:
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.counters = SampleCounters()
         self.last_error: str | None = None
+        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None}
+        self._disturbances_before = 0
         self.last_record: ResultRecord | None = None
         self.t_last: float | None = None
         self._started = time.monotonic()
@@ -139,14 +141,17 @@ class Daemon:
             for segment in self.gate.admit(samples):
                 if segment.restart:
                     self._error(segment.reason)
+                    self._disturbances_before += self.pipeline.disturbances
                     self.pipeline = AlignmentPipeline(self.config, self.site, self.config.imu.rate_hz, live=True)
                 t, dtheta, dv = segment.rows[:, 0], segment.rows[:, 1:4], segment.rows[:, 4:7]
                 self.counters.samples_used += len(t)
                 self.t_last = float(t[-1])
                 self._record_raw(t, dtheta, dv)
                 records += self.pipeline.process(t, dtheta, dv)
-            if self.gate.last_error and self.gate.last_error != self.last_error:
-                self._error(self.gate.last_error)
+            for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance)):
+                if text and text != self._reported[source]:   # report each new event once
+                    self._reported[source] = text
+                    self._error(text)
             for record in records:
                 self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
                 self.last_record = record
@@ -199,6 +204,7 @@ class Daemon:
     # ---- status, state, recording -----------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
         counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
+                    "disturbances": self._disturbances_before + self.pipeline.disturbances,
                     **self.zenoh_sequence.counters("zenoh_seq_")}
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects}

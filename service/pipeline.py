@@ -13,7 +13,8 @@ import numpy as np
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
 from .align.compass import GainSchedule
-from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm
+from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, misalignment, quat_from_dcm
+from .align.disturbance import translation_residual_mps
 from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.observations import FixedSiteSource
@@ -85,23 +86,39 @@ class AlignmentPipeline:
             raise ConfigError(f"alignment.obs_interval_s: {a.obs_interval_s} s is shorter than the IMU sample "
                               f"period {self.sample_period_s:g} s ({rate_hz:g} Hz)")
         self.period_s = config.output.period_s
-        grade = grade_from(config, datasheet)
-        self.coarse = InertialCoarseAlignment(
-            FixedSiteSource(site), grade, RecursiveK(a.solver, a.request_rho),
-            self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+        self.site = site
+        self.grade = grade_from(config, datasheet)
         self.block_samples = max(1, round(f.control_interval_s * rate_hz))
-        self.fine: FineAlignment | None = None
-        if f.enabled or initial_q_b_n is not None:
-            self.fine = FineAlignment(site, grade, GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
-                                      self.block_samples * self.sample_period_s, f.stored_data_s, f.stored_pairs,
-                                      f.live_pass_steps if live else None)
+        self._live = live
+        self._with_fine = f.enabled or initial_q_b_n is not None
+        self._start_estimators()
+        self.disturbances = 0
+        self.last_disturbance: str | None = None
+        self._disturbed_until = -np.inf
+        self._reference_C_b0_n0: np.ndarray | None = None
         self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
         self._pending = np.empty((self.block_samples, 7))
         self._n_pending = 0
         self._epoch_count: int | None = None
         self._emitted_count = -(2**62)
+
+    def _start_estimators(self, t_start: float | None = None) -> None:
+        """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
+        a, f = self.config.alignment, self.config.fine
+        self.coarse = InertialCoarseAlignment(
+            FixedSiteSource(self.site), self.grade, RecursiveK(a.solver, a.request_rho),
+            self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+        self.fine: FineAlignment | None = None
+        if self._with_fine:
+            self.fine = FineAlignment(self.site, self.grade,
+                                      GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
+                                      self.block_samples * self.sample_period_s, f.stored_data_s, f.stored_pairs,
+                                      f.live_pass_steps if self._live else None)
         self._alpha_step = np.zeros(3)
-        self._t_step: float | None = None
+        self._t_step = t_start
+        self._restarted = t_start is not None
+        self._lagged_C_b0_n0: np.ndarray | None = None
+        self._next_check_s = self.config.disturbance.check_interval_s
 
     def _epoch_counts(self, t: np.ndarray) -> np.ndarray:
         # the sample within half a period of k·P carries epoch k
@@ -175,10 +192,68 @@ class AlignmentPipeline:
                     self._emitted_count = int(counts[j])
             folded = _fold_until(solver, due, dK, trace_R, folded, end)
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end])
+            if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
+                self._restarted = False
+                if end + 1 < len(t):
+                    self._process_blocks(samples[end + 1:], records)
+                return
 
     def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
         self._alpha_step, self._t_step = alpha, t_end
+        self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s)
+        d = self.config.disturbance
+        if d.enabled and elapsed_s >= self._next_check_s:
+            self._next_check_s = elapsed_s + d.check_interval_s
+            self._check_translation(t_end, elapsed_s, q_b_b0, alpha)
+
+    def _check_translation(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
+        """Flag a base that moves (service/align/disturbance.py) and restart or report per configuration.
+
+        Two signs: the velocity the base gained (the loops' velocity, or OPREQ's residual under an
+        estimate one check old), and, after a disturbance, a level that disagrees with the last
+        trusted attitude carried on by the gyros: a base that keeps accelerating looks tilted to a
+        fresh alignment (a constant acceleration is indistinguishable from gravity), never to the gyros.
+        """
+        d = self.config.disturbance
+        C_b_b0 = dcm_from_quat(q_b_b0)
+        reasons = []
+        if self.fine is not None and self.fine.active:
+            current = self.fine.attitude(C_b_b0, 0.0)
+            speed = float(np.hypot(*self.fine.state.V))
+        elif self.coarse.solver.n_obs > 0:
+            C_b0_n0 = dcm_from_quat(self.coarse.q_b_n0)
+            current = self.coarse.source.C_n_n0(elapsed_s).T @ C_b0_n0 @ C_b_b0
+            lagged, self._lagged_C_b0_n0 = self._lagged_C_b0_n0, C_b0_n0
+            speed = 0.0 if lagged is None else translation_residual_mps(self.coarse.source, lagged, elapsed_s,
+                                                                        q_b_b0, alpha)
+        else:
+            return
+        if speed > d.velocity_threshold_mps:
+            reasons.append(f"velocity residual {speed:.2f} m/s > {d.velocity_threshold_mps:g} m/s")
+        reference = None
+        if self._reference_C_b0_n0 is not None:
+            reference = self.coarse.source.C_n_n0(elapsed_s).T @ self._reference_C_b0_n0 @ C_b_b0
+            tilt_deg = float(np.hypot(*misalignment(current, reference)[:2])) / DEG
+            if tilt_deg > d.tilt_jump_deg:
+                reasons.append(f"level {tilt_deg:.2f}° off the attitude the gyros carried on")
+            elif t_end >= self._disturbed_until:
+                self._reference_C_b0_n0 = None   # consistent again: the new alignment has earned trust
+        if not reasons:
+            return
+        self.disturbances += 1
+        self._disturbed_until = t_end + d.hold_s
+        self.last_disturbance = f"base moving at t = {t_end:.2f} s: {'; '.join(reasons)}" + (
+            ": alignment restarted" if d.action == "restart" else "")
+        trusted = reference if reference is not None else current
+        if d.action == "restart":
+            self._start_estimators(t_end)
+            self._reference_C_b0_n0 = trusted   # at the restart b0 = b(t) and n0 = n(t)
+        elif self._reference_C_b0_n0 is None:
+            self._reference_C_b0_n0 = self.coarse.source.C_n_n0(elapsed_s) @ trusted @ C_b_b0.T
+
+    def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
+                    dt_s: float) -> None:
         if self.fine is None:
             return
         if not self.fine.active and self._initial_C_b_n is not None:
@@ -216,6 +291,14 @@ class AlignmentPipeline:
 
     def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                 coarse: InertialCoarseAlignment) -> ResultRecord:
+        record = self._stage_record(t_epoch, t_sample, q_b_b0, coarse)
+        if t_sample < self._disturbed_until:
+            # nothing converged survives a disturbance until the restarted alignment earns it again
+            return replace(record, phase="disturbed", converged=False)
+        return record
+
+    def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+                      coarse: InertialCoarseAlignment) -> ResultRecord:
         threshold = self.config.alignment.converged_heading_sigma_deg
         if self.fine is None or not self.fine.active:
             record = result_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)

@@ -39,6 +39,7 @@ class RunResult:
     level_sigma_deg: np.ndarray
     converged: np.ndarray
     limit_deg: np.ndarray
+    disturbances: int = 0
 
 
 def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
@@ -71,7 +72,7 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
                      np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
-                     run_limit_deg(scenario, t))
+                     run_limit_deg(scenario, t), pipeline.disturbances)
 
 
 def _run_task(args: tuple[str, int, dict, Sequence[float] | None]) -> RunResult:

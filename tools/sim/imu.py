@@ -66,7 +66,7 @@ def true_increments(motion: AngularMotion, site: Site, t_start: np.ndarray,
     C_b_n, omega_nb_b = motion.attitude_and_rate(tau)
     C_n_b = np.swapaxes(C_b_n, -1, -2)
     omega_ib_b = omega_nb_b + C_n_b @ site.omega_ie_n
-    f_b = C_n_b @ np.array([0.0, 0.0, site.gravity])
+    f_b = (C_n_b @ (motion.accel_n(tau) + np.array([0.0, 0.0, site.gravity]))[..., None])[..., 0]
     weights = (0.5 * dt_s * w)[None, :, None]
     return (omega_ib_b * weights).sum(axis=1), (f_b * weights).sum(axis=1)
 

@@ -56,11 +56,25 @@ class AngleProfile:
 
 @dataclass(frozen=True, slots=True)
 class AngularMotion:
-    """Attitude history C_b^n(t) of a base fixed in position."""
+    """Attitude history C_b^n(t) of a base, fixed in position unless ``drive_from_s`` is set.
+
+    drive_from_s, drive_accel_n : from that time on the base accelerates at ``drive_accel_n``
+    (ENU, m/s²): a "static" base that is driven away (disturbance tests). The simulator adds the
+    acceleration to the specific force; the small Coriolis and transport terms of the resulting
+    velocity are left out (the test is of detection, not of navigation).
+    """
 
     heading: AngleProfile = field(default_factory=AngleProfile)
     pitch: AngleProfile = field(default_factory=AngleProfile)
     roll: AngleProfile = field(default_factory=AngleProfile)
+    drive_from_s: float | None = None
+    drive_accel_n: tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+    def accel_n(self, t: np.ndarray) -> np.ndarray:
+        """Linear acceleration of the base (..., 3), m/s² ENU."""
+        t = np.asarray(t, dtype=float)
+        on = np.zeros_like(t) if self.drive_from_s is None else (t >= self.drive_from_s).astype(float)
+        return on[..., None] * np.asarray(self.drive_accel_n)
 
     def attitude(self, t: np.ndarray) -> np.ndarray:
         """C_b^n at times t, shape (..., 3, 3)."""

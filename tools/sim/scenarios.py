@@ -100,6 +100,15 @@ SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
 )}
 
 
+def _driven(base: Scenario) -> Scenario:
+    motion = replace(base.motion, drive_from_s=60.0, drive_accel_n=(0.0, 1.0, 0.0))
+    return replace(base, name=base.name + "-driven", motion=motion,
+                   description=base.description + "; from 60 s the base is driven north at 1 m/s²")
+
+
+SCENARIOS["seed000-swing-driven"] = _driven(SCENARIOS["seed000-swing"])
+
+
 def get_scenario(name: str) -> Scenario:
     """A scenario by name; a name ending in ``-ideal`` gives the same run without sensor errors."""
     base = name.removesuffix("-ideal")
