@@ -64,7 +64,7 @@ class FineConfig:
 
 
 HANDOVERS = ("sigma", "time")
-ZENOH_MODES = ("peer", "client", "router")
+ZENOH_MODES = ("", "peer", "client", "router")
 
 
 @dataclass(frozen=True, slots=True)
@@ -109,10 +109,11 @@ class SerialConfig:
 
 @dataclass(frozen=True, slots=True)
 class ZenohConfig:
-    """The Zenoh session and keys. Default: peer on loopback, multicast scouting off."""
+    """The Zenoh session and keys. Default: peer listening on tcp/127.0.0.1:7447 (loopback only),
+    multicast scouting off. An empty mode, listen or connect leaves it to ``config_file`` (if any)."""
 
-    mode: str = "peer"
-    listen: tuple[str, ...] = ("tcp/127.0.0.1:7447",)
+    mode: str = ""
+    listen: tuple[str, ...] = ()
     connect: tuple[str, ...] = ()
     config_file: str = ""
     prefix: str = "sinsalign"
@@ -155,7 +156,7 @@ def _check(config: Config) -> Config:
         raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(SOLVERS)}")
     z = config.zenoh
     if z.mode not in ZENOH_MODES:
-        raise ConfigError(f"zenoh.mode: {z.mode!r} is not one of {', '.join(ZENOH_MODES)}")
+        raise ConfigError(f"zenoh.mode: {z.mode!r} is not one of {', '.join(ZENOH_MODES[1:])}")
     for key, text in (("zenoh.prefix", z.prefix), ("zenoh.unit", z.unit)):
         try:
             UnitKeys(z.prefix if key == "zenoh.prefix" else "p", text if key == "zenoh.unit" else "u")

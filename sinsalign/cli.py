@@ -259,8 +259,8 @@ def cmd_watch(args: argparse.Namespace) -> int:
     from sinsalign.tools.watch import WatchClient, watch
     overrides = _zenoh_overrides(args)
     z = overrides.setdefault("zenoh", {})
-    z.setdefault("listen", [])
-    z.setdefault("connect", ["tcp/127.0.0.1:7447"])
+    if not ({"config_file", "connect", "listen"} & z.keys()) and not args.config:
+        z.setdefault("connect", ["tcp/127.0.0.1:7447"])
     config = load_config(args.config, overrides)
     session = open_session(config.zenoh)
     client = WatchClient(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit))
