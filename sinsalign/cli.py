@@ -252,6 +252,21 @@ def cmd_fuzz(args: argparse.Namespace) -> int:
     return 1 if serial.escaped or msgs.escaped else 0
 
 
+def cmd_soak(args: argparse.Namespace) -> int:
+    from sinsalign.tools.soak import soak
+    print(f"soak: {args.hours:g} h of 200-Hz frames through 'sinsalign serve' on a pty, flat out", file=sys.stderr)
+
+    def show(s) -> None:
+        print(f"  {s.hours:7.2f} h simulated, {s.wall_s:7.0f} s wall: daemon RSS {s.rss_mib:6.1f} MiB, "
+              f"attitude latency p50 {s.latency_p50_ms:6.2f} ms p99 {s.latency_p99_ms:6.2f} ms", flush=True)
+
+    samples = soak(args.hours, args.report_every, on_sample=show)
+    first = samples[min(1, len(samples) - 1)]
+    print(f"RSS growth after the first report: {samples[-1].rss_mib - first.rss_mib:+.2f} MiB; latency p99 first "
+          f"{first.latency_p99_ms:.2f} ms, last {samples[-1].latency_p99_ms:.2f} ms")
+    return 0
+
+
 def cmd_watch(args: argparse.Namespace) -> int:
     from sinsalign.protocol.keys import UnitKeys
     from sinsalign.service.config import load_config
@@ -358,6 +373,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--inputs", type=int, default=1_000_000, help="random inputs to the serial decoder (1e6)")
     p.add_argument("--seed", type=int, default=0)
     p.set_defaults(func=cmd_fuzz)
+
+    p = sub.add_parser("soak", help="hours of simulated data through the live daemon: RSS and latency over time",
+                       description="Run 'sinsalign serve' in its own process on a pty and write HOURS of 200-Hz "
+                       "frames (static base with noise, generated on the fly) as fast as it reads them; report "
+                       "the daemon's RSS and the 1-Hz attitude latency every REPORT_EVERY simulated seconds.")
+    p.add_argument("--hours", type=float, default=24.0)
+    p.add_argument("--report-every", type=float, default=3600.0, metavar="S", help="simulated seconds per report")
+    p.set_defaults(func=cmd_soak)
 
     p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
                        description="Subscribe to <prefix>/*/attitude and status and show them live. Connects to "

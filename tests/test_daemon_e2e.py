@@ -162,3 +162,11 @@ def test_sigterm_stops_serve_cleanly_and_flushes_the_recording(tmp_path, pty_pai
     assert "stopped after 1000 samples" in err
     rows = [line for line in record.read_text().splitlines() if line and not line.startswith(("#", "t,"))]
     assert len(rows) == 1000
+
+
+@pytest.mark.slow
+def test_soak_an_accelerated_hour_keeps_memory_and_latency_flat():
+    from sinsalign.tools.soak import soak
+    samples = soak(hours=1.0, report_every_s=600.0)
+    assert samples[-1].rss_mib - samples[1].rss_mib < 1.0
+    assert samples[-1].latency_p99_ms < 3 * max(samples[1].latency_p99_ms, 5.0)

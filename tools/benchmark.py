@@ -1,7 +1,6 @@
 """Benchmarks (numbers, not pass/fail): replay throughput, per-sample latency, memory over a 24 h stream."""
 from __future__ import annotations
 
-import os
 import resource
 import tempfile
 import time
@@ -113,12 +112,6 @@ class LiveBench:
     max_ingest_frames_s: float    # frames/s the daemon kept up with when fed flat out
 
 
-def _cpu_seconds(pid: int) -> float:
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rsplit(")", 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-
-
 def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: float | None = None) -> LiveBench:
     """Virtual IMU → pty → ``sinsalign serve`` (own process) → Zenoh subscriber, on loopback.
 
@@ -127,71 +120,36 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
     are written as fast as the pty takes them to find the sustained ingest rate (counted in
     published records: with a longer output period, the status counters would be needed).
     """
-    import subprocess
-    import sys
-
-    import zenoh
-    from sinsalign.protocol import messages
-    from sinsalign.protocol.keys import UnitKeys
     from sinsalign.protocol.serial_frame import encode_imu
 
-    from .demo import free_loopback_port
-    from .virtual_imu import FramePlayer, PtyPair, write_all
+    from .daemon_process import DaemonProcess
+    from .virtual_imu import FramePlayer, write_all
 
     scenario = get_scenario("seed000-swing")
-    port = free_loopback_port()
-    pty = PtyPair()
-    with tempfile.TemporaryDirectory() as tmp:
-        config_path = Path(tmp) / "bench.toml"
-        config_path.write_text(
-            f'[site]\nlat_deg = {scenario.site.lat / DEG}\n[imu]\nrate_hz = {scenario.rate_hz}\n'
-            f'[serial]\npath = "{pty.port_name}"\n[zenoh]\nlisten = ["tcp/127.0.0.1:{port}"]\nunit = "bench"\n'
-            f'[output]\nperiod_s = {output_period_s or 1.0 / scenario.rate_hz}\n')
-        daemon = subprocess.Popen([sys.executable, "-m", "sinsalign", "serve", "--config", str(config_path)],
-                                  stderr=subprocess.DEVNULL)
-        conf = zenoh.Config()
-        for key, value in (("mode", '"peer"'), ("scouting/multicast/enabled", "false"), ("scouting/delay", "0"),
-                           ("listen/endpoints", "[]"), ("connect/endpoints", f'["tcp/127.0.0.1:{port}"]')):
-            conf.insert_json5(key, value)
-        arrivals: dict[float, float] = {}
-        count = [0]
-
-        def on_attitude(sample: zenoh.Sample) -> None:
-            arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = time.monotonic()
-            count[0] += 1
-
-        time.sleep(1.5)   # the daemon starts (imports, opens the port and the session)
-        session = zenoh.open(conf)
-        sub = session.declare_subscriber(UnitKeys("sinsalign", "bench").attitude, on_attitude)
-        time.sleep(0.5)
-        dt = 1.0 / scenario.rate_hz
+    dt = 1.0 / scenario.rate_hz
+    with DaemonProcess(scenario.site, scenario.rate_hz, output_period_s or dt) as daemon:
         t = np.arange(1, int(seconds * scenario.rate_hz) + 1) * dt
         dtheta, dv = true_increments(scenario.motion, scenario.site, t - dt, dt)
         written = np.empty(len(t))
-        player = FramePlayer(pty.master_fd, 1.0)
-        cpu0, wall0 = _cpu_seconds(daemon.pid), time.monotonic()
+        player = FramePlayer(daemon.pty.master_fd, 1.0)
+        cpu0, wall0 = daemon.cpu_seconds(), time.monotonic()
         for k in range(len(t)):   # one frame at a time, stamping the write
             player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
             written[k] = time.monotonic()
         time.sleep(0.5)
-        cpu_share = (_cpu_seconds(daemon.pid) - cpu0) / (time.monotonic() - wall0)
-        latency = np.array([arrivals[round(tk, 6)] - wk for tk, wk in zip(t, written, strict=True)
-                            if round(tk, 6) in arrivals] or [np.nan]) * 1e3
-        received = count[0]
+        cpu_share = (daemon.cpu_seconds() - cpu0) / (time.monotonic() - wall0)
+        latency = np.array([daemon.arrivals[round(tk, 6)] - wk for tk, wk in zip(t, written, strict=True)
+                            if round(tk, 6) in daemon.arrivals] or [np.nan]) * 1e3
+        received = daemon.count
         # flat out: every frame as fast as the pty accepts it, for flat_out_s seconds of writing
-        before, start, n = count[0], time.monotonic(), 0
+        before, start, n = daemon.count, time.monotonic(), 0
         while time.monotonic() - start < flat_out_s:
-            write_all(pty.master_fd, b"".join(encode_imu(len(t) + n + i, t[-1] + (n + i + 1) * dt, dtheta[0], dv[0])
-                                              for i in range(200)))
+            write_all(daemon.pty.master_fd, b"".join(
+                encode_imu(len(t) + n + i, t[-1] + (n + i + 1) * dt, dtheta[0], dv[0]) for i in range(200)))
             n += 200
         deadline = time.monotonic() + 10.0
-        while count[0] - before < n and time.monotonic() < deadline:
+        while daemon.count - before < n and time.monotonic() < deadline:
             time.sleep(0.05)
-        ingest = (count[0] - before) / (time.monotonic() - start)
-        sub.undeclare()
-        session.close()
-        daemon.terminate()
-        daemon.wait(timeout=10)
-        pty.close()
+        ingest = (daemon.count - before) / (time.monotonic() - start)
     return LiveBench(scenario.rate_hz, len(t), received, float(np.percentile(latency, 50)),
                      float(np.percentile(latency, 99)), float(latency.max()), cpu_share, ingest)

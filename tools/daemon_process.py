@@ -1,0 +1,73 @@
+"""``sinsalign serve`` in its own process, reading a fresh pty, watched by a Zenoh subscriber.
+
+For the benchmarks and the soak: the daemon is measured from outside, as a user would see it
+(CPU and RSS from /proc, attitude arrival times from a separate Zenoh session).
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import zenoh
+from sinsalign.protocol import messages
+from sinsalign.protocol.keys import UnitKeys
+from sinsalign.service.align.conventions import DEG
+from sinsalign.service.align.earth import Site
+
+from .demo import free_loopback_port
+from .virtual_imu import PtyPair
+
+
+class DaemonProcess:
+    """Start with ``with DaemonProcess(site, rate_hz, output_period_s) as d:``; write frames to ``d.pty``."""
+
+    def __init__(self, site: Site, rate_hz: float, output_period_s: float) -> None:
+        self.port = free_loopback_port()
+        self.pty = PtyPair()
+        self._tmp = tempfile.TemporaryDirectory()
+        config_path = Path(self._tmp.name) / "serve.toml"
+        config_path.write_text(
+            f'[site]\nlat_deg = {site.lat / DEG}\n[imu]\nrate_hz = {rate_hz}\n'
+            f'[serial]\npath = "{self.pty.port_name}"\n[zenoh]\nlisten = ["tcp/127.0.0.1:{self.port}"]\n'
+            f'unit = "bench"\n[output]\nperiod_s = {output_period_s}\n')
+        self.process = subprocess.Popen([sys.executable, "-m", "sinsalign", "serve", "--config", str(config_path)],
+                                        stderr=subprocess.DEVNULL)
+        self.arrivals: dict[float, float] = {}   # attitude t (s, rounded) → monotonic arrival time
+        self.count = 0
+        conf = zenoh.Config()
+        for key, value in (("mode", '"peer"'), ("scouting/multicast/enabled", "false"), ("scouting/delay", "0"),
+                           ("listen/endpoints", "[]"), ("connect/endpoints", f'["tcp/127.0.0.1:{self.port}"]')):
+            conf.insert_json5(key, value)
+        time.sleep(1.5)   # imports, the port and the session
+        self.session = zenoh.open(conf)
+        self._sub = self.session.declare_subscriber(UnitKeys("sinsalign", "bench").attitude, self._on_attitude)
+        time.sleep(0.5)
+
+    def _on_attitude(self, sample: zenoh.Sample) -> None:
+        self.arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = time.monotonic()
+        self.count += 1
+
+    def cpu_seconds(self) -> float:
+        with open(f"/proc/{self.process.pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+    def rss_mib(self) -> float:
+        with open(f"/proc/{self.process.pid}/status") as f:
+            line = next(line for line in f if line.startswith("VmRSS:"))
+        return int(line.split()[1]) / 1024.0
+
+    def __enter__(self) -> DaemonProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._sub.undeclare()
+        self.session.close()
+        self.process.terminate()
+        self.process.wait(timeout=10)
+        self.pty.close()
+        self._tmp.cleanup()
