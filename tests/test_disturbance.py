@@ -51,3 +51,17 @@ def test_pure_swing_is_never_flagged_in_20_runs():
         runs = monte_carlo(name, range(20), progress=False)
         assert [r.disturbances for r in runs] == [0] * 20, name
         assert np.all([r.converged[-1] for r in runs])
+
+
+def test_an_attitude_jump_the_gyros_did_not_see_is_reported_within_a_few_seconds():
+    scenario = get_scenario("seed000-swing")
+    pipeline = AlignmentPipeline(Config(), scenario.site, scenario.rate_hz, scenario.grade.datasheet())
+    angle = np.radians(1.0)   # the IMU turned 1° about its x axis between two samples, unseen by the gyros
+    turn = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(angle), np.sin(angle)], [0.0, -np.sin(angle), np.cos(angle)]])
+    records = []
+    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 120.0, 4):
+        dv = np.where(chunk.t[:, None] > 60.0, chunk.dv @ turn.T, chunk.dv)
+        records += pipeline.process(chunk.t, chunk.dtheta, dv)
+    disturbed = [r.t for r in records if r.phase == "disturbed"]
+    assert disturbed and 60.0 < disturbed[0] <= 65.0
+    assert not any(r.converged for r in records if r.t >= disturbed[0] and r.t < disturbed[0] + 10.0)
