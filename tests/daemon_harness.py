@@ -74,3 +74,26 @@ def run_daemon(daemon: Daemon) -> threading.Thread:
     return thread
 
 
+
+
+class RunningDaemon:
+    """A daemon (serial on ``serial_path`` if given) with a subscriber, started; ``stop()`` ends both."""
+
+    def __init__(self, tmp_path: Path, serial_path: str | None = None, reconnect_max_s: float = 2.0,
+                 **sections) -> None:
+        from sinsalign.service.serial_port import SerialPort
+        from sinsalign.service.zenoh_session import open_session
+        self.port = free_port()
+        if serial_path:
+            sections["serial"] = {**sections.get("serial", {}), "path": serial_path}
+        self.config = daemon_config(tmp_path, self.port, **sections)
+        port = SerialPort(serial_path, self.config.serial.baud, reconnect_max_s) if serial_path else None
+        self.daemon = Daemon(self.config, open_session(self.config.zenoh), port)
+        self.subscriber = Subscriber(self.port, self.daemon.keys)
+        self.thread = run_daemon(self.daemon)
+
+    def stop(self) -> None:
+        self.daemon.stop()
+        self.thread.join(timeout=5)
+        self.subscriber.close()
+        assert not self.thread.is_alive()

@@ -14,13 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
-from daemon_harness import SCENARIO, SECONDS, Subscriber, daemon_config, free_port, run_daemon
+from daemon_harness import SCENARIO, SECONDS, RunningDaemon, free_port
 from sinsalign.protocol import messages
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.config import Config
-from sinsalign.service.daemon import Daemon
-from sinsalign.service.serial_port import SerialPort
-from sinsalign.service.zenoh_session import open_session
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
@@ -52,11 +49,8 @@ def pty_pair():
 
 
 def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_replay(tmp_path, pty_pair):
-    port = free_port()
-    config = daemon_config(tmp_path, port, serial={"path": pty_pair.port_name})
-    daemon = Daemon(config, open_session(config.zenoh), SerialPort(pty_pair.port_name, config.serial.baud))
-    subscriber = Subscriber(port, daemon.keys)
-    thread = run_daemon(daemon)
+    run = RunningDaemon(tmp_path, pty_pair.port_name)
+    config, subscriber = run.config, run.subscriber
     chunks = samples()
     n = sum(len(c.t) for c in chunks)
     player = FramePlayer(pty_pair.master_fd, speed=20.0)
@@ -65,10 +59,7 @@ def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_repla
     play_s = time.monotonic() - start
     subscriber.wait_for(int(SECONDS / config.output.period_s))
     time.sleep(0.3)   # a status period
-    daemon.stop()
-    thread.join(timeout=5)
-    subscriber.close()
-    assert not thread.is_alive()
+    run.stop()
     assert play_s < SECONDS / 10          # it really ran near ×20 (4000 frames/s)
     counters = subscriber.status[-1]["counters"]
     # no frame lost, none dropped: the counters prove it
@@ -82,12 +73,10 @@ def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_repla
 
 
 def test_zenoh_imu_input_gives_the_same_as_offline_replay(tmp_path):
-    port = free_port()
-    config = daemon_config(tmp_path, port, zenoh={"imu_input": True})
-    daemon = Daemon(config, open_session(config.zenoh))
-    subscriber = Subscriber(port, daemon.keys)
-    thread = run_daemon(daemon)
-    publisher = subscriber.session.declare_publisher(daemon.keys.imu, congestion_control=zenoh.CongestionControl.BLOCK)
+    run = RunningDaemon(tmp_path, zenoh={"imu_input": True})
+    config, subscriber = run.config, run.subscriber
+    publisher = subscriber.session.declare_publisher(run.daemon.keys.imu,
+                                                     congestion_control=zenoh.CongestionControl.BLOCK)
     seq = 0
     for c in samples(20.0):
         for k in range(len(c.t)):
@@ -97,20 +86,15 @@ def test_zenoh_imu_input_gives_the_same_as_offline_replay(tmp_path):
     publisher.put(b"\x93garbage")          # a malformed message is counted, not fatal
     subscriber.wait_for(int(20.0 / config.output.period_s))
     time.sleep(0.3)
-    daemon.stop()
-    thread.join(timeout=5)
-    subscriber.close()
+    run.stop()
     counters = subscriber.status[-1]["counters"]
     assert counters["samples_used"] == seq and counters["bad_messages"] == 1
     assert_same_as_replay(subscriber.attitude, tmp_path / "recorded.csv", tmp_path, config)
 
 
 def test_queryable_answers_state_and_configuration_and_liveliness_is_declared(tmp_path):
-    port = free_port()
-    config = daemon_config(tmp_path, port)
-    daemon = Daemon(config, open_session(config.zenoh))
-    subscriber = Subscriber(port, daemon.keys)
-    thread = run_daemon(daemon)
+    run = RunningDaemon(tmp_path)
+    daemon, subscriber = run.daemon, run.subscriber
     alive = []
     deadline = time.monotonic() + 5.0
     while not alive and time.monotonic() < deadline:   # declarations reach a new peer a moment after open()
@@ -118,9 +102,7 @@ def test_queryable_answers_state_and_configuration_and_liveliness_is_declared(tm
                  if r.ok is not None]
         time.sleep(0.05)
     replies = [r.ok for r in subscriber.session.get(daemon.keys.state, timeout=2.0) if r.ok is not None]
-    daemon.stop()
-    thread.join(timeout=5)
-    subscriber.close()
+    run.stop()
     assert [str(k) for k in alive] == [daemon.keys.alive]
     state = messages.unpack_map(replies[0].payload.to_bytes())
     assert state["config"]["zenoh"]["unit"] == "bench" and state["status"]["health"] in ("starting", "no_input")

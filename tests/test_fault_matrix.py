@@ -16,12 +16,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
-from daemon_harness import Subscriber, daemon_config, free_port, run_daemon
+from daemon_harness import RunningDaemon, Subscriber
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import encode_imu
-from sinsalign.service.daemon import Daemon
-from sinsalign.service.serial_port import SerialPort
-from sinsalign.service.zenoh_session import open_session
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
@@ -52,17 +49,13 @@ class Bench:
     """Daemon on a pty (or Zenoh IMU input) plus a subscriber, on free loopback ports."""
 
     def __init__(self, tmp_path: Path, port_path: str | None = None, zenoh_imu: bool = False) -> None:
-        self.port = free_port()
         sections = dict(FAST)
         if zenoh_imu:
             sections["zenoh"] = {"imu_input": True}
         self.pty = None if zenoh_imu else PtyPair()
-        path = port_path or (self.pty.port_name if self.pty else "")
-        self.config = daemon_config(tmp_path, self.port, **sections)
-        self.daemon = Daemon(self.config, open_session(self.config.zenoh),
-                             SerialPort(path, self.config.serial.baud, 0.2) if path else None)
-        self.subscriber = Subscriber(self.port, self.daemon.keys)
-        self.thread = run_daemon(self.daemon)
+        self.run = RunningDaemon(tmp_path, port_path or (self.pty.port_name if self.pty else None),
+                                 reconnect_max_s=0.2, **sections)
+        self.port, self.daemon, self.subscriber = self.run.port, self.run.daemon, self.run.subscriber
         self.player = FramePlayer(self.pty.master_fd, SPEED) if self.pty else None
 
     def play(self, start: int, end: int) -> None:
@@ -80,12 +73,10 @@ class Bench:
                 and time.monotonic() < deadline:
             time.sleep(0.02)
         time.sleep(0.3)
-        self.daemon.stop()
-        self.thread.join(timeout=5)
-        self.subscriber.close()
+        self.run.subscriber = self.subscriber   # a test may have replaced it
+        self.run.stop()
         if self.pty:
             self.pty.close()
-        assert not self.thread.is_alive()
         return self.subscriber.status[-1]["counters"], self.subscriber.attitude[-1]
 
 

@@ -18,7 +18,7 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import NameOID
-from daemon_harness import Subscriber, daemon_config, free_port, run_daemon
+from daemon_harness import RunningDaemon, daemon_config, free_port, run_daemon
 from sinsalign.protocol import messages
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.serial_port import SerialPort
@@ -104,11 +104,8 @@ def test_tls_client_without_the_certificate_gets_nothing(tmp_path):
 
 
 def test_nothing_on_the_wire_changes_the_configuration_and_the_state_query_is_read_only(tmp_path):
-    port = free_port()
-    config = daemon_config(tmp_path, port)
-    daemon = Daemon(config, open_session(config.zenoh))
-    client = Subscriber(port, daemon.keys)
-    thread = run_daemon(daemon)
+    run = RunningDaemon(tmp_path)
+    config, daemon, client = run.config, run.daemon, run.subscriber
     hostile = messages.pack({"v": 1, "config": {"zenoh": {"unit": "pwned"}, "daemon": {"record_path": "/tmp/x"}}})
     for key in (daemon.keys.state, f"{daemon.keys.prefix}/{daemon.keys.unit}/config", daemon.keys.status):
         client.session.put(key, hostile)
@@ -118,9 +115,7 @@ def test_nothing_on_the_wire_changes_the_configuration_and_the_state_query_is_re
     while not replies and time.monotonic() < deadline:
         replies = [r.ok for r in client.session.get(daemon.keys.state, payload=hostile, timeout=1.0)
                    if r.ok is not None]
-    daemon.stop()
-    thread.join(timeout=5)
-    client.close()
+    run.stop()
     state = messages.unpack_map(replies[0].payload.to_bytes())
     assert state["config"]["zenoh"]["unit"] == "bench" and state["config"]["daemon"]["record_path"].endswith(
         "recorded.csv")
