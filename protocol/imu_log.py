@@ -12,6 +12,7 @@ not parse it re-reads that chunk line by line to name the file, line and column 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from itertools import islice
@@ -110,19 +111,33 @@ def read_header(stream: TextIO, path: str, columns: tuple[str, ...] = IMU_COLUMN
     raise LogFormatError(path, max(line_no, 1), None, f"no header line {','.join(columns)!r} found")
 
 
+NUMBER = re.compile(r"\s*[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?\s*")
+"""A plain decimal number, the only cell numpy's parser and this diagnosis both accept."""
+NON_FINITE = re.compile(r"\s*[+-]?(?:nan|inf|infinity)\s*", re.IGNORECASE)
+
+
+def _is_row(raw: str) -> bool:
+    """Data rows are the non-blank lines that are not comments ('#' lines may annotate a log anywhere)."""
+    text = raw.strip()
+    return bool(text) and not text.startswith("#")
+
+
 def _diagnose(lines: list[str], first_line: int, path: str, columns: tuple[str, ...]) -> LogFormatError:
     """Find the first bad cell of a chunk that numpy refused."""
     for offset, raw in enumerate(lines):
+        if not _is_row(raw):
+            continue
         cells = raw.strip().split(",")
         line_no = first_line + offset
-        if len(cells) != len(columns):
+        if len(cells) < len(columns):
+            return LogFormatError(path, line_no, columns[len(cells)],
+                                  f"missing: expected {len(columns)} values, found {len(cells)}")
+        if len(cells) > len(columns):
             return LogFormatError(path, line_no, None, f"expected {len(columns)} values, found {len(cells)}")
         for name, cell in zip(columns, cells, strict=True):
-            try:
-                value = float(cell)
-            except ValueError:
+            if not NUMBER.fullmatch(cell) and not NON_FINITE.fullmatch(cell):
                 return LogFormatError(path, line_no, name, f"not a number: {cell.strip()!r}")
-            if not math.isfinite(value):
+            if not math.isfinite(float(cell)):
                 return LogFormatError(path, line_no, name, f"not finite: {cell.strip()!r}")
     return LogFormatError(path, first_line, None, "unreadable rows")
 
@@ -136,10 +151,11 @@ def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ..
         lines = [raw for raw in islice(stream, chunk_rows)]
         if not lines:
             return
-        kept = [raw for raw in lines if raw.strip()]
+        kept = [raw for raw in lines if _is_row(raw)]
         try:
             with np.errstate(all="ignore"):
-                block = np.loadtxt(kept, delimiter=",", ndmin=2) if kept else np.empty((0, len(columns)))
+                block = (np.loadtxt(kept, delimiter=",", ndmin=2, comments=None) if kept
+                         else np.empty((0, len(columns))))
             ok = block.shape[1] == len(columns) and bool(np.isfinite(block).all())
         except ValueError:
             ok = False
@@ -149,7 +165,7 @@ def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ..
         steps = np.diff(times, prepend=t_last)
         if len(times) and not (steps > 0).all():
             bad = int(np.flatnonzero(steps <= 0)[0])
-            bad_line = line_no + [i for i, raw in enumerate(lines) if raw.strip()][bad]
+            bad_line = line_no + [i for i, raw in enumerate(lines) if _is_row(raw)][bad]
             raise LogFormatError(path, bad_line, "t", f"time does not increase ({float(times[bad])!r} after "
                                  f"{float(times[bad - 1] if bad else t_last)!r})")
         if len(times):

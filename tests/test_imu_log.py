@@ -170,12 +170,10 @@ def test_wrong_cell_count_names_line(tmp_path: Path, text: str, found: int, line
     lines[line - FIRST_DATA_LINE] = text
     path = write_text_log(tmp_path / "bad.csv", lines)
     exc = read_error(path, chunk_rows)
-    check_error(exc, path, line, None)
-    assert f"expected 7 values, found {found}" in str(exc)
+    check_error(exc, path, line, IMU_COLUMNS[found] if found < len(IMU_COLUMNS) else None)   # a short row names
+    assert f"expected 7 values, found {found}" in str(exc)                                  # its first missing cell
 
 
-@pytest.mark.xfail(strict=True, reason="a row with too few cells names no column; the first missing one (dvz) is "
-                   "the natural column to name (LogFormatError should name file, line and column)")
 def test_missing_cell_names_first_missing_column(tmp_path: Path) -> None:
     lines = good_lines(10)
     lines[3] = "0.04,0,0,0,0,0"
@@ -248,8 +246,6 @@ def test_blank_line_in_earlier_chunk_keeps_bad_cell_line(tmp_path: Path, chunk_r
     check_error(read_error(path, chunk_rows), path, 15, "dvy")
 
 
-@pytest.mark.xfail(strict=True, reason="_diagnose does not skip blank lines: when a chunk fails to parse, a blank "
-                   "line before the real fault is reported as 'expected 7 values, found 1' with no column")
 @pytest.mark.parametrize("chunk_rows", [4, 20000])
 def test_blank_line_before_bad_cell_in_same_chunk(tmp_path: Path, chunk_rows: int) -> None:
     lines = good_lines(12)
@@ -262,8 +258,6 @@ def test_blank_line_before_bad_cell_in_same_chunk(tmp_path: Path, chunk_rows: in
 # --- faults numpy and float() disagree on, comment lines among the data ----------------------------------------------
 
 
-@pytest.mark.xfail(strict=True, reason="cells that Python's float() accepts but numpy's parser refuses ('1_0', "
-                   "full-width digits) are reported as 'unreadable rows' at the chunk's first line, no column")
 @pytest.mark.parametrize("cell", ["1_0", "\uff11"])
 def test_cell_numpy_refuses_but_float_accepts(tmp_path: Path, cell: str) -> None:
     lines = good_lines(12)
@@ -272,8 +266,6 @@ def test_cell_numpy_refuses_but_float_accepts(tmp_path: Path, cell: str) -> None
     check_error(read_error(path, 4), path, 11, "dvy")
 
 
-@pytest.mark.xfail(strict=True, reason="a '#' line among the data rows is dropped by numpy.loadtxt but still counted "
-                   "when mapping a time error back to its line, so the error names the row before the fault")
 def test_comment_line_among_rows_keeps_time_error_line(tmp_path: Path) -> None:
     lines = good_lines(12)
     lines.insert(2, "# note")  # line 8
@@ -291,9 +283,6 @@ def outcome(path: Path, chunk_rows: int) -> object:
         return (exc.line, exc.column)
 
 
-@pytest.mark.xfail(strict=True, reason="a '#' line among the data rows is silently dropped when the chunk also holds "
-                   "rows, but a chunk holding only '#' lines fails ('expected 7 values, found 1'): the outcome "
-                   "depends on chunk_rows")
 @pytest.mark.filterwarnings("ignore:loadtxt:UserWarning")
 def test_comment_line_among_rows_same_outcome_for_every_chunk_size(tmp_path: Path) -> None:
     lines = good_lines(12)
