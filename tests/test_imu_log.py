@@ -407,6 +407,17 @@ def test_cli_replay_names_file_line_column(capsys: pytest.CaptureFixture[str], t
     assert "Traceback" not in err
 
 
+def test_failed_replay_leaves_the_previous_results_file_untouched(capsys: pytest.CaptureFixture[str],
+                                                                 tmp_path: Path) -> None:
+    (tmp_path / "r.jsonl").write_text("previous results\n")
+    lines = good_lines(30000)   # the fault sits past the first chunk: results were already being written
+    lines[25000] = "oops"
+    code, _ = run_replay(capsys, tmp_path, write_text_log(tmp_path / "late_fault.csv", lines))
+    assert code == 2
+    assert (tmp_path / "r.jsonl").read_text() == "previous results\n"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["late_fault.csv", "r.jsonl"]
+
+
 def test_cli_replay_header_error(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     log = write_text_log(tmp_path / "no_rate.csv", good_lines(10), {k: v for k, v in HEADER.items() if k != "rate_hz"})
     code, err = run_replay(capsys, tmp_path, log)
