@@ -10,7 +10,8 @@ DESCRIPTION = """\
 Real-time initial alignment of a strapdown INS: recursive Optimal-REQUEST (OPREQ) coarse
 alignment in the inertial frame (level from gravity, heading from the Earth's rotation), then
 compass (gyrocompass-loop) fine alignment with stored-data backward/forward passes.
-Output phases: coarse -> fine -> aligned.
+Output phases: coarse -> fine -> aligned (or disturbed when the base moves).
+Runs as a daemon (serial/Zenoh in, Zenoh out) or offline on recorded logs, with the same results.
 
 Conventions: navigation frame East-North-Up, body Right-Front-Up, q = [w, x, y, z] of C_b^n,
 heading clockwise from true North in [0, 360). IMU logs are CSV of angle and velocity increments.
@@ -20,7 +21,12 @@ Typical session:
   sinsalign replay run1/imu.csv --out run1/results.jsonl   # align it as fast as the CPU goes
   sinsalign eval seed000-swing --seeds 20 --no-fine         # Monte Carlo table and plot (OPREQ)
   sinsalign eval seed001-swing --fine                       # seed 001's compass comparison
-  sinsalign demo                                            # all of it, one run, summary
+  sinsalign demo                                            # the live bench in one command
+
+Live:
+  sinsalign bench --speed 1                      # virtual IMU on a new pty; prints its name
+  sinsalign serve --serial /dev/pts/N            # the daemon (Zenoh peer on tcp/127.0.0.1:7447)
+  sinsalign watch                                # live view; any number of them
 """
 
 
