@@ -143,8 +143,12 @@ def _diagnose(lines: list[str], first_line: int, path: str, columns: tuple[str, 
 
 
 def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
-              chunk_rows: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
-    """Yield (N, len(columns)) float64 blocks of the data rows; time must increase strictly."""
+              chunk_rows: int = CHUNK_ROWS, increasing: bool = True) -> Iterator[np.ndarray]:
+    """Yield (N, len(columns)) float64 blocks of the data rows.
+
+    ``increasing``: time must increase strictly (IMU logs); aiding logs leave ordering to the
+    consumer, which counts repeats and out-of-order epochs instead of stopping.
+    """
     line_no = first_line
     t_last = -math.inf
     while True:
@@ -163,7 +167,7 @@ def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ..
             raise _diagnose(lines, line_no, path, columns)
         times = block[:, 0]
         steps = np.diff(times, prepend=t_last)
-        if len(times) and not (steps > 0).all():
+        if increasing and len(times) and not (steps > 0).all():
             bad = int(np.flatnonzero(steps <= 0)[0])
             bad_line = line_no + [i for i, raw in enumerate(lines) if _is_row(raw)][bad]
             raise LogFormatError(path, bad_line, "t", f"time does not increase ({float(times[bad])!r} after "
@@ -182,10 +186,16 @@ class ImuLog:
     header: LogHeader
 
     def blocks(self, chunk_rows: int = CHUNK_ROWS) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        with open(self.path, encoding="utf-8", errors="replace") as stream:
-            _, consumed = read_header(stream, self.path)
-            for block in read_rows(stream, self.path, consumed + 1, chunk_rows=chunk_rows):
-                yield block[:, 0], block[:, 1:4], block[:, 4:7]
+        for block in stream_rows(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows):
+            yield block[:, 0], block[:, 1:4], block[:, 4:7]
+
+
+def stream_rows(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,
+                increasing: bool = True) -> Iterator[np.ndarray]:
+    """The data rows of a log with these columns, in (N, len(columns)) blocks after its header."""
+    with open(path, encoding="utf-8", errors="replace") as stream:
+        _, consumed = read_header(stream, path, columns, required)
+        yield from read_rows(stream, path, consumed + 1, columns, chunk_rows, increasing)
 
 
 def open_imu_log(path: str | Path) -> ImuLog:

@@ -1,0 +1,81 @@
+"""Aiding input (foundation of the aided modes): the pinned aiding logs and the epoch track.
+
+GIVEN odometer, GNSS and master-INS logs in the pinned format, THEN they stream like the IMU log
+and a malformed one names file, line and column; GIVEN epochs late, repeated, out of order or
+missing, THEN the track shifts, drops and counts them and interpolates exactly between good ones.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
+from sinsalign.protocol.imu_log import LogFormatError, write_header, write_rows
+from sinsalign.service.aiding import AidingTrack
+
+
+def write_log(path: Path, kind: str, rows: np.ndarray, keys: dict | None = None) -> Path:
+    with open(path, "w", encoding="utf-8") as f:
+        write_header(f, keys or {}, KINDS[kind].columns)
+        write_rows(f, rows)
+    return path
+
+
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_each_kind_streams_its_columns(tmp_path, kind):
+    n = len(KINDS[kind].columns)
+    rows = np.column_stack((np.arange(1, 301) * 0.01, np.random.default_rng(1).normal(size=(300, n - 1))))
+    log = open_aiding_log(kind, write_log(tmp_path / f"{kind}.csv", kind, rows))
+    assert np.array_equal(np.concatenate(list(log.blocks(chunk_rows=64))), rows)
+
+
+def test_lever_arm_and_std_keys(tmp_path):
+    rows = np.array([[0.1, 30.0, 114.0, 20.0, 0.0, 50.0, 0.0]])
+    keys = {"lever_x_m": 1.0, "lever_y_m": -1.0, "lever_z_m": 0.5, "vel_std_mps": 0.1, "pos_std_m": 2.0}
+    log = open_aiding_log("gnss", write_log(tmp_path / "g.csv", "gnss", rows, keys))
+    assert log.lever_arm_m.tolist() == [1.0, -1.0, 0.5] and log.std("pos_std_m") == 2.0
+    assert open_aiding_log("odo", write_log(tmp_path / "o.csv", "odo", rows[:, :4])).std("vel_std_mps") is None
+    with pytest.raises(LogFormatError, match="vel_std_mps must be a finite number ≥ 0"):
+        open_aiding_log("odo", write_log(tmp_path / "bad.csv", "odo", rows[:, :4], {"vel_std_mps": -1}))
+    with pytest.raises(ValueError, match="unknown aiding kind"):
+        open_aiding_log("lidar", tmp_path / "o.csv")
+
+
+def test_a_bad_cell_names_file_line_and_column_and_disorder_is_not_fatal(tmp_path):
+    path = tmp_path / "odo.csv"
+    path.write_text("# vel_std_mps=0.03\nt,vx,vy,vz\n0.1,0,20,0\n0.05,0,20,0\n0.2,0,abc,0\n")
+    log = open_aiding_log("odo", path)
+    with pytest.raises(LogFormatError) as info:
+        list(log.blocks())
+    assert (info.value.line, info.value.column) == (5, "vy")      # line 4 goes back in time: not an error here
+
+
+def test_track_shifts_by_latency_and_interpolates_exactly():
+    track = AidingTrack(latency_s=0.05)
+    track.push(np.array([[1.05, 10.0, 0.0], [2.05, 20.0, 4.0]]))
+    assert track.latest_time == pytest.approx(2.0)
+    assert track.at(1.25) == pytest.approx([12.5, 1.0])
+    assert track.at(2.5) is None and track.counters.unaided_queries == 1
+
+
+def test_track_counts_repeats_disorder_non_finite_and_gaps():
+    track = AidingTrack(max_gap_s=1.0)
+    track.push(np.array([[1.0, 1.0], [1.0, 1.0], [0.5, 1.0], [1.5, np.nan], [4.0, 2.0]]))
+    c = track.counters
+    assert (c.epochs, c.repeats, c.out_of_order, c.non_finite, c.gaps) == (2, 1, 1, 1, 1)
+    assert track.at(2.0) is None     # across a 3-s gap: nothing, not a made-up value
+
+
+@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.text(max_size=400))
+def test_fuzz_aiding_reader_gives_only_format_errors(tmp_path, text):
+    path = tmp_path / "fuzz.csv"
+    path.write_text("t,vx,vy,vz\n" + text, encoding="utf-8", errors="replace")
+    try:
+        for _ in open_aiding_log("odo", path).blocks(chunk_rows=7):
+            pass
+    except LogFormatError:
+        pass
