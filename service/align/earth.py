@@ -26,21 +26,23 @@ _SOMIGLIANA_K = 0.00193185265241
 _M = OMEGA_IE**2 * A_M**2 * (A_M * (1 - F)) / GM
 
 
-def normal_gravity(lat: float, height_m: float = 0.0) -> float:
+def normal_gravity(lat: float | np.ndarray, height_m: float | np.ndarray = 0.0) -> float | np.ndarray:
     """Magnitude of WGS-84 normal gravity (gravitation plus centripetal) at (lat, h), m/s².
 
     Somigliana's closed form on the ellipsoid with the second-order free-air correction.
+    Scalars in, float out; arrays in, array out.
     """
     s2 = np.sin(lat) ** 2
     g0 = _GAMMA_E * (1.0 + _SOMIGLIANA_K * s2) / np.sqrt(1.0 - E2 * s2)
-    return float(g0 * (1.0 - 2.0 / A_M * (1.0 + F + _M - 2.0 * F * s2) * height_m
-                       + 3.0 / A_M**2 * height_m**2))
+    g = g0 * (1.0 - 2.0 / A_M * (1.0 + F + _M - 2.0 * F * s2) * height_m + 3.0 / A_M**2 * np.square(height_m))
+    return float(g) if np.ndim(g) == 0 else g
 
 
-def radii(lat: float) -> tuple[float, float]:
-    """Meridian and prime-vertical radii of curvature (R_M, R_N), m."""
+def radii(lat: float | np.ndarray) -> tuple[float, float] | tuple[np.ndarray, np.ndarray]:
+    """Meridian and prime-vertical radii of curvature (R_M, R_N), m (floats for a scalar latitude)."""
     w = 1.0 - E2 * np.sin(lat) ** 2
-    return float(A_M * (1.0 - E2) / w**1.5), float(A_M / np.sqrt(w))
+    R_M, R_N = A_M * (1.0 - E2) / w**1.5, A_M / np.sqrt(w)
+    return (float(R_M), float(R_N)) if np.ndim(w) == 0 else (R_M, R_N)
 
 
 def earth_rate_n(lat: float) -> np.ndarray:

@@ -3,7 +3,8 @@
 Δθ_k = ∫ ω_ib^b dt and Δv_k = ∫ f^b dt over (t_{k-1}, t_k] are integrated by Gauss-Legendre
 quadrature of the analytic body rate and specific force: the integrands are smooth and slow
 against the sample interval, so a few nodes reach double precision.
-For a base fixed in position: ω_ib^b = ω_nb^b + C_n^b ω_ie^n and f^b = C_n^b [0, 0, g].
+The motion supplies ω_ib^b and f^b (motion.py for a base fixed in position, vehicle.py for a
+vehicle that drives).
 """
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ import numpy as np
 from sinsalign.service.align.earth import Site
 
 from .motion import AngularMotion
+from .vehicle import VehicleMotion
 
 GAUSS_NODES = 5
 
@@ -58,15 +60,12 @@ class ImuChunk:
     C_b_n_true: np.ndarray   # (N, 3, 3) true attitude at t
 
 
-def true_increments(motion: AngularMotion, site: Site, t_start: np.ndarray,
+def true_increments(motion: AngularMotion | VehicleMotion, site: Site, t_start: np.ndarray,
                     dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Error-free Δθ (N, 3) rad and Δv (N, 3) m/s over [t_start, t_start + dt_s]."""
     x, w = np.polynomial.legendre.leggauss(GAUSS_NODES)
     tau = t_start[:, None] + 0.5 * dt_s * (x + 1.0)[None, :]
-    C_b_n, omega_nb_b = motion.attitude_and_rate(tau)
-    C_n_b = np.swapaxes(C_b_n, -1, -2)
-    omega_ib_b = omega_nb_b + C_n_b @ site.omega_ie_n
-    f_b = (C_n_b @ (motion.accel_n(tau) + np.array([0.0, 0.0, site.gravity]))[..., None])[..., 0]
+    _, omega_ib_b, f_b = motion.body_rate_and_force(site, tau)
     weights = (0.5 * dt_s * w)[None, :, None]
     return (omega_ib_b * weights).sum(axis=1), (f_b * weights).sum(axis=1)
 

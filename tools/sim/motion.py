@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from sinsalign.service.align.conventions import dcm_from_euler
+from sinsalign.service.align.earth import Site
 
 
 @dataclass(frozen=True, slots=True)
@@ -69,6 +70,17 @@ class AngularMotion:
     roll: AngleProfile = field(default_factory=AngleProfile)
     drive_from_s: float | None = None
     drive_accel_n: tuple[float, float, float] = (0.0, 1.0, 0.0)
+
+    def body_rate_and_force(self, site: Site, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """C_b^n (…, 3, 3), ω_ib^b (…, 3) rad/s and f^b (…, 3) m/s² at times t on a base at ``site``.
+
+        ω_ib^b = ω_nb^b + C_n^b ω_ie^n and f^b = C_n^b ([0, 0, g] + drive acceleration).
+        """
+        C_b_n, omega_nb_b = self.attitude_and_rate(t)
+        C_n_b = np.swapaxes(C_b_n, -1, -2)
+        omega_ib_b = omega_nb_b + C_n_b @ site.omega_ie_n
+        f_b = (C_n_b @ (self.accel_n(t) + np.array([0.0, 0.0, site.gravity]))[..., None])[..., 0]
+        return C_b_n, omega_ib_b, f_b
 
     def accel_n(self, t: np.ndarray) -> np.ndarray:
         """Linear acceleration of the base (..., 3), m/s² ENU."""
