@@ -67,3 +67,24 @@ def test_vehicle_increments_satisfy_the_inertial_frame_identity(speed):
     residual = (motion.attitude(np.zeros(1))[0] @ alpha.T).T - beta
     assert np.abs(residual).max() < 1e-4    # m/s, against |β| ≈ 1200 m/s at 120 s
     assert abs(motion.position(np.array([120.0]))[0, 0] - motion.start.lat) > 1e-5   # it did drive
+
+
+def test_odometer_measures_the_lever_arm_point_and_writes_the_pinned_log(tmp_path):
+    from sinsalign.protocol.aiding_log import open_aiding_log
+    from sinsalign.tools.sim.aiding import body_velocity, write_body_velocity_log
+    motion = drive(20.0)
+    t = np.arange(1, 12001) * 0.01
+    ideal = body_velocity(motion, t)
+    assert np.abs(ideal - motion.velocity_n(t)[1]).max() < 1e-12
+    lever = np.array([0.0, 2.0, -1.0])
+    with_lever = body_velocity(motion, t, lever, scale=np.array([0.0, 0.01, 0.0]))
+    # the first turn (90° in 10 s) swings the 2-m forward lever sideways at up to 0.5 m/s; before it only
+    # the 1° roll at 0.2 Hz moves the 1-m vertical lever (0.022 m/s)
+    turning = (t > 30.0) & (t < 40.0)
+    assert np.abs(with_lever[turning, 0]).max() > 0.3 and np.abs(with_lever[t < 25.0, 0]).max() < 0.03
+    assert with_lever[t < 25.0, 1] == pytest.approx(20.0 * 1.01, abs=0.01)   # pitch rate × lever: 6 mm/s
+    noisy = body_velocity(motion, t, noise_std_mps=0.03, rng=np.random.default_rng(0))
+    assert np.std(noisy - ideal) == pytest.approx(0.03, rel=0.05)
+    log = open_aiding_log("odo", write_body_velocity_log(tmp_path / "odo.csv", t, noisy, 0.03))
+    assert log.std("vel_std_mps") == 0.03
+    assert np.array_equal(np.concatenate(list(log.blocks()))[:, 1:], noisy)

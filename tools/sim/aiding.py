@@ -1,0 +1,45 @@
+"""Simulated aiding sensors on a driving vehicle: odometer / DVL body velocity (seed 003).
+
+The sensor sits at lever arm l^b from the IMU (body axes, m) and measures that point's velocity
+over ground in body axes, V_P^b = V^b + ω_eb^b × l^b with ω_eb^b = ω_nb^b + C_n^b ω_en^n, times
+(1 + scale factor) per axis, plus white noise; written as the pinned body-velocity log.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from sinsalign.protocol.aiding_log import KINDS
+from sinsalign.protocol.imu_log import write_header, write_rows
+from sinsalign.service.align.conventions import cross
+from sinsalign.service.align.earth import radii
+
+from .vehicle import VehicleMotion
+
+
+def body_velocity(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | None = None,
+                  scale: np.ndarray | None = None, noise_std_mps: float = 0.0,
+                  rng: np.random.Generator | None = None) -> np.ndarray:
+    """Measured V_P^b (N, 3) in m/s at times t (N,); lever arm and scale factors default to zero."""
+    lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
+    scale = np.zeros(3) if scale is None else np.asarray(scale, dtype=float)
+    C_b_n, omega_nb_b = motion.attitude_profiles.attitude_and_rate(t)
+    _, V_b, V_n = motion.velocity_n(t)
+    lat, _, h = np.moveaxis(motion.position(t), -1, 0)
+    R_M, R_N = radii(lat)
+    omega_en_n = np.stack((-V_n[..., 1] / (R_M + h), V_n[..., 0] / (R_N + h), V_n[..., 0] * np.tan(lat) / (R_N + h)),
+                          axis=-1)
+    omega_eb_b = omega_nb_b + (np.swapaxes(C_b_n, -1, -2) @ omega_en_n[..., None])[..., 0]
+    measured = (V_b + cross(omega_eb_b, np.broadcast_to(lever_b, V_b.shape))) * (1.0 + scale)
+    if noise_std_mps:
+        measured = measured + noise_std_mps * (rng or np.random.default_rng()).standard_normal(measured.shape)
+    return measured
+
+
+def write_body_velocity_log(path: str | Path, t: np.ndarray, v_b: np.ndarray, vel_std_mps: float | None = None) -> Path:
+    """The pinned body-velocity log: ``t,vx,vy,vz`` with an optional ``# vel_std_mps=`` key."""
+    path = Path(path)
+    with open(path, "w", encoding="utf-8") as f:
+        write_header(f, {} if vel_std_mps is None else {"vel_std_mps": vel_std_mps}, KINDS["odo"].columns)
+        write_rows(f, np.column_stack((t, v_b)))
+    return path
