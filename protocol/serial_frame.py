@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .counters import Counters
 from .sequence import SequenceTracker
 
 SYNC = b"\xaa\x55"
@@ -106,7 +107,7 @@ def decode_imu(frame: Frame) -> ImuMessage:
 
 
 @dataclass(slots=True)
-class DecoderCounters:
+class DecoderCounters(Counters):
     """What the decoder saw: good frames and every kind of drop."""
 
     frames: int = 0
@@ -117,8 +118,6 @@ class DecoderCounters:
     bad_version: int = 0
     unknown_type: int = 0        # well-formed frames of a type this daemon does not handle (not dropped)
 
-    def as_dict(self) -> dict[str, int]:
-        return {name: getattr(self, name) for name in self.__slots__}
 
 
 @dataclass(slots=True)

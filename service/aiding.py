@@ -13,9 +13,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..protocol.counters import Counters
+
 
 @dataclass(slots=True)
-class AidingCounters:
+class AidingCounters(Counters):
     epochs: int = 0
     repeats: int = 0
     out_of_order: int = 0
@@ -23,8 +25,6 @@ class AidingCounters:
     gaps: int = 0                 # epochs that follow the previous one by more than max_gap_s
     unaided_queries: int = 0      # IMU times asked for without two epochs around them
 
-    def as_dict(self, prefix: str) -> dict[str, int]:
-        return {f"{prefix}_{name}": getattr(self, name) for name in self.__slots__}
 
 
 @dataclass(slots=True)

@@ -23,6 +23,7 @@ import numpy as np
 import zenoh
 
 from ..protocol import messages
+from ..protocol.counters import Counters
 from ..protocol.imu_log import IMU_COLUMNS, write_header, write_rows
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
@@ -42,7 +43,7 @@ MSGPACK = zenoh.Encoding("application/msgpack")
 
 
 @dataclass(slots=True)
-class SampleCounters:
+class SampleCounters(Counters):
     """Checks on decoded samples, whatever their input."""
 
     samples_in: int = 0
@@ -52,8 +53,6 @@ class SampleCounters:
     records_published: int = 0
     internal_errors: int = 0
 
-    def as_dict(self) -> dict[str, int]:
-        return {name: getattr(self, name) for name in self.__slots__}
 
 
 class Daemon:

@@ -17,9 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..protocol.counters import Counters
+
 
 @dataclass(slots=True)
-class GateCounters:
+class GateCounters(Counters):
     time_not_increasing: int = 0
     samples_bridged: int = 0
     gaps_bridged: int = 0
@@ -27,8 +29,6 @@ class GateCounters:
     saturated: int = 0
     status_flagged: int = 0
 
-    def as_dict(self) -> dict[str, int]:
-        return {name: getattr(self, name) for name in self.__slots__}
 
 
 @dataclass(slots=True)
