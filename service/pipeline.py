@@ -19,7 +19,7 @@ from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.observations import FixedSiteSource
 from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, bias_limit_rad
-from .align.solvers import RecursiveK
+from .align.solvers import CentredWahba, RecursiveK, make_solver
 from .config import Config, ConfigError
 
 INITIAL_TILT_SIGMA_DEG = 0.1
@@ -46,7 +46,7 @@ def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, thresh
                         trace_P=float(solution.trace_P), n_obs=solution.n_obs)
 
 
-def _fold_until(solver: RecursiveK, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int,
+def _fold_until(solver: RecursiveK | CentredWahba, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int,
                 sample: int) -> int:
     """Fold the prepared observations taken at samples up to ``sample``; returns how many are folded."""
     upto = int(np.searchsorted(due, sample, side="right"))
@@ -106,7 +106,7 @@ class AlignmentPipeline:
         """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
         a, f = self.config.alignment, self.config.fine
         self.coarse = InertialCoarseAlignment(
-            FixedSiteSource(self.site), self.grade, RecursiveK(a.solver, a.request_rho),
+            FixedSiteSource(self.site), self.grade, make_solver(a.solver, a.request_rho),
             self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
         self.fine: FineAlignment | None = None
         if self._with_fine:

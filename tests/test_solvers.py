@@ -77,3 +77,24 @@ def test_bad_solver_settings_are_refused():
         RecursiveK("svd")
     with pytest.raises(ValueError, match="rho"):
         RecursiveK("request", rho=0.0)
+
+
+def test_centred_wahba_absorbs_a_constant_common_to_all_pairs():
+    """The aided-mode trap (math §5): one noisy first sample shifts every observation alike."""
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment, quat_from_rotvec
+    from sinsalign.service.align.solvers import CentredWahba, RecursiveK
+    rng = np.random.default_rng(3)
+    q_true = quat_from_rotvec(np.array([0.3, -0.2, 1.1]))
+    C_true = dcm_from_quat(q_true)               # C_b^n: r = C b
+    r = np.cumsum(rng.normal(size=(200, 3)) + np.array([0.0, 0.0, 5.0]), axis=0)
+    b = r @ C_true + np.array([0.05, -0.03, 0.02])   # b = C_n^b r + c (a constant offset)
+    centred, plain = CentredWahba(), RecursiveK("qmethod")
+    for solver in (centred, plain):
+        solver.fold(*solver.prepare(b, r, np.ones(len(b))))
+    error = {name: np.degrees(np.abs(misalignment(dcm_from_quat(s.quaternion()), C_true)).max())
+             for name, s in (("centred", centred), ("plain", plain))}
+    assert error["centred"] < 1e-9 < 1e-3 < error["plain"]
+    again = CentredWahba()
+    for k in range(0, len(b), 7):   # grouping does not change the bits
+        again.fold(*again.prepare(b[k:k + 7], r[k:k + 7], np.ones(7)))
+    assert np.array_equal(again.quaternion(), centred.quaternion())

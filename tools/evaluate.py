@@ -171,7 +171,8 @@ def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
 SOLVER_VARIANTS = (("OPREQ", {"solver": "opreq"}), ("q-method (OBA)", {"solver": "qmethod"}),
                    ("REQUEST ρ=0.1", {"solver": "request", "request_rho": 0.1}),
                    ("REQUEST ρ=0.01", {"solver": "request", "request_rho": 0.01}),
-                   ("REQUEST ρ=0.001", {"solver": "request", "request_rho": 0.001}))
+                   ("REQUEST ρ=0.001", {"solver": "request", "request_rho": 0.001}),
+                   ("centred Wahba (free offset)", {"solver": "centred"}))
 
 
 def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tuple[str, dict[str, list[RunResult]]]:

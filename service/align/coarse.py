@@ -15,7 +15,7 @@ import numpy as np
 from .conventions import dcm_from_quat, quat_from_dcm
 from .observations import ObservationSource
 from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
-from .solvers import RecursiveK
+from .solvers import CentredWahba, RecursiveK
 from .strapdown import InertialIntegrator
 
 
@@ -51,7 +51,7 @@ class InertialCoarseAlignment:
     disturbance_velocity_mps : bounded velocity-like disturbance of α in OPREQ's noise model (m/s).
     """
 
-    def __init__(self, source: ObservationSource, grade: SensorGrade, solver: RecursiveK,
+    def __init__(self, source: ObservationSource, grade: SensorGrade, solver: RecursiveK | CentredWahba,
                  sample_period_s: float, obs_interval_s: float = 0.1, disturbance_velocity_mps: float = 1e-3) -> None:
         if obs_interval_s < sample_period_s:
             raise ValueError("obs_interval_s must be at least one sample period")
@@ -101,8 +101,6 @@ class InertialCoarseAlignment:
         due = np.flatnonzero(np.diff(counts, prepend=self._obs_count) > 0)
         self._obs_count = int(counts[-1])
         b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due])
-        b = b / np.sqrt(np.einsum("mi,mi->m", b, b))[:, None]
-        r = r / np.sqrt(np.einsum("mi,mi->m", r, r))[:, None]
         mu = self.grade.observation_variance(elapsed_s[due], self._gravity, self.disturbance_velocity_mps)
         self._cached = None
         return (due, *self.solver.prepare(b, r, mu))

@@ -8,6 +8,11 @@ They differ only in the gain ρ_k that blends a new observation into K:
 - REQUEST: a fixed fading gain ρ;
 - batch q-method (OBA): ρ_k = 1/(k+1), the equally weighted sum of every δK, streamed.
 
+:class:`CentredWahba` ("centred") solves a different problem on the same pairs, unnormalised:
+b_k = A r_k + c with an unknown constant c common to all pairs (Kabsch). Aided modes need it:
+their α holds the first aiding sample V^b(0) (or V^n(0)) as such a constant, and one noisy
+sample would otherwise tilt every pair alike (alignment-math.md §5, "a trap").
+
 Matrix convention: K = [[S - σI, z], [zᵀ, σ]] with the vector part first; its top eigenvector
 q̄ = [q_v, q_4] gives A(q̄) = (q_4² - q_v·q_v) I + 2 q_v q_vᵀ - 2 q_4 [q_v×]. With b in body
 and r in navigation axes A = C_n^b, so the Hamilton quaternion of C_b^n is [q_4, q_v].
@@ -18,7 +23,7 @@ import numpy as np
 
 from .conventions import cross, quat_normalize
 
-SOLVERS = ("opreq", "request", "qmethod")
+SOLVERS = ("opreq", "request", "qmethod", "centred")
 
 
 def delta_K(b: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -65,7 +70,7 @@ class RecursiveK:
     """
 
     def __init__(self, solver: str = "opreq", rho: float = 0.01, trace_Q: float = 0.0) -> None:
-        if solver not in SOLVERS:
+        if solver not in SOLVERS[:3]:
             raise ValueError(f"unknown solver {solver!r}; choose one of {', '.join(SOLVERS)}")
         if solver == "request" and not 0.0 < rho <= 1.0:
             raise ValueError(f"REQUEST gain rho must be in (0, 1], got {rho}")
@@ -88,7 +93,12 @@ class RecursiveK:
 
     @staticmethod
     def prepare(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(δK (M, 4, 4), tr R (M,)) of M observations, for :meth:`fold` (vectorised)."""
+        """(δK (M, 4, 4), tr R (M,)) of M observations, for :meth:`fold` (vectorised).
+
+        b, r need not be unit vectors: each pair is normalised here (a unit weight each).
+        """
+        b = b / np.sqrt(np.einsum("mi,mi->m", b, b))[:, None]
+        r = r / np.sqrt(np.einsum("mi,mi->m", r, r))[:, None]
         trace_R = np.trace(request_noise(b, r, np.asarray(mu, dtype=float)), axis1=1, axis2=2)
         return delta_K(b, r), trace_R
 
@@ -125,3 +135,59 @@ class RecursiveK:
         if self.n_obs == 0:
             return np.array([1.0, 0.0, 0.0, 0.0])
         return quaternion_from_K(self.K)
+
+
+class CentredWahba:
+    """Least squares for b_k = A r_k + c with a free constant c, from O(1) running sums.
+
+    B = Σ b rᵀ − (Σ b)(Σ r)ᵀ / n over the unnormalised pairs (equal weights); the attitude is
+    the top eigenvector of B's Davenport matrix, like the other solvers. Same interface as
+    :class:`RecursiveK` (``prepare``/``fold``/``quaternion``), so the coarse stage and the
+    pipeline use either. ``rho`` and ``trace_P`` are reported as 1/n and NaN.
+    """
+
+    solver = "centred"
+
+    def __init__(self) -> None:
+        self.S_br = np.zeros((3, 3))
+        self.S_b = np.zeros(3)
+        self.S_r = np.zeros(3)
+        self.n_obs = 0
+        self.rho = 1.0
+        self.trace_P = float("nan")
+
+    @staticmethod
+    def prepare(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(b rᵀ (M, 3, 3), [b, r] (M, 6)) of M pairs, for :meth:`fold`; ``mu`` is not used."""
+        return b[:, :, None] * r[:, None, :], np.concatenate((b, r), axis=1)
+
+    def fold(self, outer: np.ndarray, pairs: np.ndarray) -> None:
+        """Add prepared pairs to the sums, one after the other (same bits however grouped)."""
+        for k in range(len(pairs)):
+            self.S_br = self.S_br + outer[k]
+            self.S_b = self.S_b + pairs[k, :3]
+            self.S_r = self.S_r + pairs[k, 3:]
+            self.n_obs += 1
+        self.rho = 1.0 / max(self.n_obs, 1)
+
+    @property
+    def K(self) -> np.ndarray:
+        B = self.S_br - np.outer(self.S_b, self.S_r) / max(self.n_obs, 1)
+        sigma = np.trace(B)
+        K = np.empty((4, 4))
+        K[:3, :3] = B + B.T - sigma * np.eye(3)
+        z = np.array([B[1, 2] - B[2, 1], B[2, 0] - B[0, 2], B[0, 1] - B[1, 0]])
+        K[:3, 3] = K[3, :3] = z
+        K[3, 3] = sigma
+        return K
+
+    def quaternion(self) -> np.ndarray:
+        """Current estimate of C_b^n(0) as [w, x, y, z]; identity before two observations."""
+        if self.n_obs < 2:
+            return np.array([1.0, 0.0, 0.0, 0.0])
+        return quaternion_from_K(self.K)
+
+
+def make_solver(name: str, rho: float = 0.01) -> RecursiveK | CentredWahba:
+    """The solver named in the configuration (``alignment.solver``)."""
+    return CentredWahba() if name == "centred" else RecursiveK(name, rho)
