@@ -169,7 +169,7 @@ class CompassLoops:
         self.radius_m = float(np.sqrt(R_M * R_N)) + site.height_m
         self.omega_cos = OMEGA_IE * np.cos(site.lat)
         self.omega_sin = OMEGA_IE * np.sin(site.lat)
-        self.omega_ie_n = np.array([0.0, self.omega_cos, self.omega_sin])
+        self.omega_ie_n = site.omega_ie_n
         self._F_cache: dict[tuple, np.ndarray] = {}
 
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float,

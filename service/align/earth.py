@@ -45,9 +45,26 @@ def radii(lat: float | np.ndarray) -> tuple[float, float] | tuple[np.ndarray, np
     return (float(R_M), float(R_N)) if np.ndim(w) == 0 else (R_M, R_N)
 
 
-def earth_rate_n(lat: float) -> np.ndarray:
-    """ω_ie^n = [0, Ω cos L, Ω sin L] (rad/s, ENU)."""
-    return np.array([0.0, OMEGA_IE * np.cos(lat), OMEGA_IE * np.sin(lat)])
+def earth_rate_n(lat: float | np.ndarray) -> np.ndarray:
+    """ω_ie^n = [0, Ω cos L, Ω sin L] (rad/s, ENU), shape (..., 3) for latitudes of shape (...)."""
+    lat = np.asarray(lat, dtype=float)
+    return OMEGA_IE * np.stack((np.zeros_like(lat), np.cos(lat), np.sin(lat)), axis=-1)
+
+
+def transport_rate_n(V_n: np.ndarray, lat: float | np.ndarray, height_m: float | np.ndarray) -> np.ndarray:
+    """ω_en^n = [−V_N/(R_M+h), V_E/(R_N+h), V_E tan L/(R_N+h)] (rad/s), shape (..., 3)."""
+    R_M, R_N = radii(lat)
+    V_n = np.asarray(V_n, dtype=float)
+    return np.stack((-V_n[..., 1] / (R_M + height_m), V_n[..., 0] / (R_N + height_m),
+                     V_n[..., 0] * np.tan(lat) / (R_N + height_m)), axis=-1)
+
+
+def position_rate(V_n: np.ndarray, lat: float | np.ndarray, height_m: float | np.ndarray) -> np.ndarray:
+    """(L̇, λ̇, ḣ) in rad/s, rad/s, m/s of a position moving at V^n (ENU, m/s), shape (..., 3)."""
+    R_M, R_N = radii(lat)
+    V_n = np.asarray(V_n, dtype=float)
+    return np.stack((V_n[..., 1] / (R_M + height_m), V_n[..., 0] / ((R_N + height_m) * np.cos(lat)), V_n[..., 2]),
+                    axis=-1)
 
 
 @dataclass(frozen=True, slots=True)

@@ -21,7 +21,7 @@ import numpy as np
 
 from .compass import rotation_matrix
 from .conventions import cross, dcm_from_quat
-from .earth import OMEGA_IE, Site, normal_gravity, radii
+from .earth import Site, earth_rate_n, normal_gravity, position_rate, transport_rate_n
 from .solvers import make_solver
 
 
@@ -55,7 +55,7 @@ def reference_vectors(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray |
     t_prev = 0.0
     for k, t in enumerate(window.elapsed_s):
         lat, h = pos[0], pos[2]
-        omega_ie_n = OMEGA_IE * np.array([0.0, np.cos(lat), np.sin(lat)])
+        omega_ie_n = earth_rate_n(lat)
         minus_g_n = np.array([0.0, 0.0, normal_gravity(lat, h)])
         if C_b0_n0 is None:
             V_n = np.zeros(3)
@@ -67,11 +67,9 @@ def reference_vectors(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray |
             previous = integrand
         beta = beta + 0.5 * (t - t_prev) * (previous + integrand)
         out[k] = beta
-        R_M, R_N = radii(lat)
-        omega_en_n = np.array([-V_n[1] / (R_M + h), V_n[0] / (R_N + h), V_n[0] * np.tan(lat) / (R_N + h)])
         step = window.elapsed_s[k + 1] - t if k + 1 < len(window.elapsed_s) else 0.0
-        pos = pos + step * np.array([V_n[1] / (R_M + h), V_n[0] / ((R_N + h) * np.cos(lat)), V_n[2]])
-        C_n_n0 = C_n_n0 @ rotation_matrix((omega_ie_n + omega_en_n) * step)
+        C_n_n0 = C_n_n0 @ rotation_matrix((omega_ie_n + transport_rate_n(V_n, lat, h)) * step)
+        pos = pos + step * position_rate(V_n, lat, h)
         previous, t_prev = integrand, t
     return out
 

@@ -12,7 +12,7 @@ import numpy as np
 from sinsalign.protocol.aiding_log import KINDS
 from sinsalign.protocol.imu_log import write_header, write_rows
 from sinsalign.service.align.conventions import cross
-from sinsalign.service.align.earth import radii
+from sinsalign.service.align.earth import transport_rate_n
 
 from .vehicle import VehicleMotion
 
@@ -26,9 +26,7 @@ def body_velocity(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | No
     C_b_n, omega_nb_b = motion.attitude_profiles.attitude_and_rate(t)
     _, V_b, V_n = motion.velocity_n(t)
     lat, _, h = np.moveaxis(motion.position(t), -1, 0)
-    R_M, R_N = radii(lat)
-    omega_en_n = np.stack((-V_n[..., 1] / (R_M + h), V_n[..., 0] / (R_N + h), V_n[..., 0] * np.tan(lat) / (R_N + h)),
-                          axis=-1)
+    omega_en_n = transport_rate_n(V_n, lat, h)
     omega_eb_b = omega_nb_b + (np.swapaxes(C_b_n, -1, -2) @ omega_en_n[..., None])[..., 0]
     measured = (V_b + cross(omega_eb_b, np.broadcast_to(lever_b, V_b.shape))) * (1.0 + scale)
     if noise_std_mps:

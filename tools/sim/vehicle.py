@@ -18,7 +18,7 @@ from functools import cached_property
 
 import numpy as np
 from sinsalign.service.align.conventions import cross
-from sinsalign.service.align.earth import OMEGA_IE, Site, normal_gravity, radii
+from sinsalign.service.align.earth import Site, earth_rate_n, normal_gravity, position_rate, transport_rate_n
 
 from .motion import AngleProfile, AngularMotion
 
@@ -26,9 +26,7 @@ GRID_S = 0.01
 
 
 def _position_rate(pos: np.ndarray, V_n: np.ndarray) -> np.ndarray:
-    """(L̇, λ̇, ḣ) of a position (lat, lon, h) moving at V^n (ENU, m/s)."""
-    R_M, R_N = radii(pos[0])
-    return np.array([V_n[1] / (R_M + pos[2]), V_n[0] / ((R_N + pos[2]) * np.cos(pos[0])), V_n[2]])
+    return position_rate(V_n, pos[0], pos[2])
 
 
 @dataclass(frozen=True)
@@ -92,10 +90,8 @@ class VehicleMotion:
         V_n = (C_b_n @ V_b[..., None])[..., 0]
         V_n_dot = (C_b_n @ (cross(omega_nb_b, V_b) + V_b_dot)[..., None])[..., 0]
         lat, _, h = np.moveaxis(self.position(t), -1, 0)
-        R_M, R_N = radii(lat)
-        omega_ie_n = OMEGA_IE * np.stack((zeros, np.cos(lat), np.sin(lat)), axis=-1)
-        omega_en_n = np.stack((-V_n[..., 1] / (R_M + h), V_n[..., 0] / (R_N + h),
-                               V_n[..., 0] * np.tan(lat) / (R_N + h)), axis=-1)
+        omega_ie_n = earth_rate_n(lat)
+        omega_en_n = transport_rate_n(V_n, lat, h)
         g = normal_gravity(lat, h)
         g_n = np.stack((zeros, zeros, -g), axis=-1)
         f_n = V_n_dot + cross(2.0 * omega_ie_n + omega_en_n, V_n) - g_n
