@@ -207,6 +207,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     import os
 
     from sinsalign.protocol.imu_log import open_imu_log
+    from sinsalign.service.align.conventions import DEG
     from sinsalign.tools.sim.imu import simulate
     from sinsalign.tools.sim.scenarios import get_scenario
     from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
@@ -224,7 +225,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
         s = get_scenario(args.scenario)
         duration = args.duration or s.duration_s
         chunks = ((c.t, c.dtheta, c.dv) for c in simulate(s.motion, s.site, s.errors, s.rate_hz, duration, args.seed))
-        what = f"{args.scenario} seed {args.seed} (site lat {s.site.lat * 57.29577951308232:.3f}°, "\
+        what = f"{args.scenario} seed {args.seed} (site lat {s.site.lat / DEG:.3f}°, "\
                f"{s.rate_hz:g} Hz: serve with --config giving [site] and [imu] to match)"
     print(f"virtual IMU on {name}: playing {what} at ×{args.speed:g} in {args.start_delay:g} s", file=sys.stderr)
     time.sleep(args.start_delay)   # the reader's open() flushes what came before it

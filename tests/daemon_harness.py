@@ -1,27 +1,24 @@
 """Shared by the daemon tests: a configuration on free loopback ports, a subscriber session, start-up."""
 from __future__ import annotations
 
-import socket
 import threading
 import time
 from pathlib import Path
 
-import zenoh
 from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
 from sinsalign.service.align.conventions import DEG
-from sinsalign.service.config import Config, config_from_mapping
+from sinsalign.service.config import Config, ZenohConfig, config_from_mapping
 from sinsalign.service.daemon import Daemon
+from sinsalign.service.zenoh_session import open_session
+from sinsalign.tools.demo import free_loopback_port
 from sinsalign.tools.sim.scenarios import get_scenario
 
 SCENARIO = "seed000-swing"
 SECONDS = 40.0
 
 
-def free_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
+free_port = free_loopback_port
 
 
 def daemon_config(tmp_path: Path, port: int, **sections) -> Config:
@@ -41,13 +38,7 @@ class Subscriber:
     """A separate Zenoh session (a client program) collecting attitude and status messages."""
 
     def __init__(self, port: int, keys: UnitKeys) -> None:
-        conf = zenoh.Config()
-        conf.insert_json5("mode", '"peer"')
-        conf.insert_json5("scouting/multicast/enabled", "false")
-        conf.insert_json5("scouting/delay", "0")
-        conf.insert_json5("connect/endpoints", f'["tcp/127.0.0.1:{port}"]')
-        conf.insert_json5("listen/endpoints", "[]")
-        self.session = zenoh.open(conf)
+        self.session = open_session(ZenohConfig(connect=(f"tcp/127.0.0.1:{port}",)))
         self.attitude: list[dict] = []
         self.status: list[dict] = []
         self._subs = [self.session.declare_subscriber(keys.attitude, lambda s: self.attitude.append(

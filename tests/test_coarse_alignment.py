@@ -81,3 +81,23 @@ def test_opreq_settles_faster_than_fixed_request_and_matches_the_batch_q_method(
     opreq_late, q_late = window_stats(swing_runs, (101, 200)), window_stats(qmethod, (101, 200))
     rms = {k: np.hypot(s.heading_mean, s.heading_seed_std) for k, s in (("opreq", opreq_late), ("q", q_late))}
     assert rms["opreq"] <= rms["q"] * 1.05
+
+
+def test_the_per_sample_core_api_agrees_with_the_block_path():
+    """InertialCoarseAlignment.update (one sample) and .solution, as a user of the core calls them."""
+    from sinsalign.service.align.coarse import InertialCoarseAlignment
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment
+    from sinsalign.service.align.observations import FixedSiteSource
+    from sinsalign.service.align.solvers import RecursiveK
+    from sinsalign.tools.sim.imu import simulate
+    scenario = get_scenario("seed000-swing")
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, 200.0, 40.0, 2, chunk_samples=8000)
+    per_sample, block = (InertialCoarseAlignment(FixedSiteSource(scenario.site), scenario.grade, RecursiveK(), 0.005)
+                         for _ in range(2))
+    for k in range(len(chunk.t)):
+        per_sample.update(chunk.dtheta[k], chunk.dv[k], chunk.t[k])
+    block.update_block(chunk.t, chunk.dtheta, chunk.dv)
+    a, b = per_sample.solution, block.solution
+    assert a.t == b.t == chunk.t[-1] and a.n_obs == b.n_obs == 400
+    assert np.abs(misalignment(dcm_from_quat(a.q_b_n), dcm_from_quat(b.q_b_n))).max() / DEG < 1e-6   # rounding
+    assert np.abs(misalignment(dcm_from_quat(a.q_b_n), chunk.C_b_n_true[-1])).max() / DEG < 0.3

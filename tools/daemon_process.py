@@ -17,6 +17,8 @@ from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
+from sinsalign.service.config import ZenohConfig
+from sinsalign.service.zenoh_session import open_session
 
 from .demo import free_loopback_port
 from .virtual_imu import PtyPair
@@ -38,12 +40,8 @@ class DaemonProcess:
                                         stderr=subprocess.DEVNULL)
         self.arrivals: dict[float, float] = {}   # attitude t (s, rounded) → monotonic arrival time
         self.count = 0
-        conf = zenoh.Config()
-        for key, value in (("mode", '"peer"'), ("scouting/multicast/enabled", "false"), ("scouting/delay", "0"),
-                           ("listen/endpoints", "[]"), ("connect/endpoints", f'["tcp/127.0.0.1:{self.port}"]')):
-            conf.insert_json5(key, value)
         time.sleep(1.5)   # imports, the port and the session
-        self.session = zenoh.open(conf)
+        self.session = open_session(ZenohConfig(connect=(f"tcp/127.0.0.1:{self.port}",)))
         self._sub = self.session.declare_subscriber(UnitKeys("sinsalign", "bench").attitude, self._on_attitude)
         time.sleep(0.5)
 

@@ -34,11 +34,11 @@ class WatchClient:
     _entities: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        prefix = self.keys.prefix
+        units = self.keys.all_units
         self._entities = [
-            self.session.declare_subscriber(f"{prefix}/*/attitude", self._on_attitude),
-            self.session.declare_subscriber(f"{prefix}/*/status", self._on_status),
-            self.session.liveliness().declare_subscriber(f"{prefix}/*/alive", self._on_alive, history=True),
+            self.session.declare_subscriber(f"{units}/attitude", self._on_attitude),
+            self.session.declare_subscriber(f"{units}/status", self._on_status),
+            self.session.liveliness().declare_subscriber(f"{units}/alive", self._on_alive, history=True),
         ]
 
     def _unit(self, key: zenoh.KeyExpr) -> UnitView:

@@ -67,7 +67,6 @@ class InertialCoarseAlignment:
         self.t0: float | None = None
         self.t: float | None = None
         self._obs_count = 0
-        self._cached: AttitudeSolution | None = None
 
     def update(self, dtheta: np.ndarray, dv: np.ndarray, t: float) -> None:
         """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
@@ -90,7 +89,6 @@ class InertialCoarseAlignment:
             self.t0 = float(t[0]) - self.sample_period_s
         q_b_b0, alpha = self.integrator.integrate(dtheta, dv, block_samples)
         self.t = float(t[-1])
-        self._cached = None
         return t - self.t0, q_b_b0, alpha
 
     def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray,
@@ -102,7 +100,6 @@ class InertialCoarseAlignment:
         self._obs_count = int(counts[-1])
         b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due])
         mu = self.grade.observation_variance(elapsed_s[due], self._gravity, self.disturbance_velocity_mps)
-        self._cached = None
         return (due, *self.solver.prepare(b, r, mu))
 
     def scratch(self) -> InertialCoarseAlignment:
@@ -115,10 +112,6 @@ class InertialCoarseAlignment:
         clone.integrator = copy.copy(self.integrator)
         clone.solver = copy.copy(self.solver)
         return clone
-
-    @property
-    def elapsed_s(self) -> float:
-        return 0.0 if self.t is None else self.t - self.t0
 
     @property
     def q_b_n0(self) -> np.ndarray:
@@ -143,7 +136,5 @@ class InertialCoarseAlignment:
 
     @property
     def solution(self) -> AttitudeSolution:
-        """The current attitude C_b^n(t) with its uncertainty (computed on demand, cached)."""
-        if self._cached is None:
-            self._cached = self.solution_at(self.t if self.t is not None else 0.0, self.integrator.q_b_b0)
-        return self._cached
+        """The current attitude C_b^n(t) with its uncertainty (after ``update``/``update_block``)."""
+        return self.solution_at(self.t if self.t is not None else 0.0, self.integrator.q_b_b0)
