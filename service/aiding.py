@@ -3,13 +3,16 @@
 Whatever the source (an aiding log, the serial aiding message, ``…/aid/<kind>`` on Zenoh),
 epochs pass through an :class:`AidingTrack`: their time stamps are moved back by the configured
 latency, an epoch not after the previous one is dropped and counted (a repeat if it carries the
-same time, out of order otherwise), and a value at any IMU sample time comes from linear
-interpolation between the two epochs around it, or nothing (counted) when they are further
-apart than ``max_gap_s`` or the sample lies outside them. Nothing here is fatal.
+same time, out of order otherwise), and values at IMU sample times come from linear
+interpolation between the two epochs around each, or NaN (counted) when they are further apart
+than ``max_gap_s`` or the sample lies outside the epochs held. Nothing here is fatal.
+
+The track holds the epochs not yet passed by the IMU samples asked for (:meth:`release`), so its
+memory is bounded by the aiding latency (daemon) or the replay chunk, whatever the run length.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,50 +29,74 @@ class AidingCounters(Counters):
     unaided_queries: int = 0      # IMU times asked for without two epochs around them
 
 
-
-@dataclass(slots=True)
 class AidingTrack:
-    """The two latest usable epochs of one aiding stream (bounded memory).
+    """The usable epochs of one aiding stream (time, then ``width`` values per epoch).
 
     latency_s : how late the stream's time stamps are (subtracted).
     max_gap_s : two epochs further apart than this are not interpolated across.
     """
 
-    latency_s: float = 0.0
-    max_gap_s: float = 1.0
-    counters: AidingCounters = field(default_factory=AidingCounters)
-    _prev: np.ndarray | None = None      # (1 + n,) time and values
-    _last: np.ndarray | None = None
+    def __init__(self, width: int, latency_s: float = 0.0, max_gap_s: float = 1.0) -> None:
+        self.width = width
+        self.latency_s = latency_s
+        self.max_gap_s = max_gap_s
+        self.counters = AidingCounters()
+        self._epochs = np.empty((64, 1 + width))
+        self._n = 0
 
     def push(self, rows: np.ndarray) -> None:
-        """Epochs (N, 1 + n): time stamp (s, the stream's clock) then the values."""
-        for row in np.atleast_2d(np.asarray(rows, dtype=float)):
+        """Epochs (N, 1 + width): time stamp (s, the stream's clock) then the values."""
+        rows = np.atleast_2d(np.asarray(rows, dtype=float))
+        if rows.shape[1] != 1 + self.width:
+            raise ValueError(f"aiding epochs need {1 + self.width} columns, got {rows.shape[1]}")
+        for row in rows:
             if not np.isfinite(row).all():
                 self.counters.non_finite += 1
                 continue
-            row = row.copy()
-            row[0] -= self.latency_s
-            if self._last is not None and not row[0] > self._last[0]:
-                if row[0] == self._last[0]:
+            t = row[0] - self.latency_s
+            last = self.latest_time
+            if last is not None and not t > last:
+                if t == last:
                     self.counters.repeats += 1
                 else:
                     self.counters.out_of_order += 1
                 continue
-            if self._last is not None and row[0] - self._last[0] > self.max_gap_s:
+            if last is not None and t - last > self.max_gap_s:
                 self.counters.gaps += 1
-            self._prev, self._last = self._last, row
+            if self._n == len(self._epochs):
+                self._epochs = np.concatenate((self._epochs, np.empty_like(self._epochs)))
+            self._epochs[self._n, 0] = t
+            self._epochs[self._n, 1:] = row[1:]
+            self._n += 1
             self.counters.epochs += 1
 
     @property
     def latest_time(self) -> float | None:
         """Time (IMU clock) of the newest epoch; values up to it can be interpolated."""
-        return None if self._last is None else float(self._last[0])
+        return None if self._n == 0 else float(self._epochs[self._n - 1, 0])
+
+    def values_at(self, t: np.ndarray) -> np.ndarray:
+        """Values (N, width) at increasing IMU times ``t`` (N,), NaN rows where nothing is known."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        out = np.full((len(t), self.width), np.nan)
+        held = self._epochs[:self._n]
+        if self._n >= 2:
+            k = np.clip(np.searchsorted(held[:, 0], t, side="right"), 1, self._n - 1)
+            t0, t1 = held[k - 1, 0], held[k, 0]
+            ok = (t >= t0) & (t <= t1) & (t1 - t0 <= self.max_gap_s)
+            f = ((t - t0) / (t1 - t0))[ok, None]
+            out[ok] = held[k[ok] - 1, 1:] + f * (held[k[ok], 1:] - held[k[ok] - 1, 1:])
+        self.counters.unaided_queries += int(np.isnan(out[:, 0]).sum())
+        return out
 
     def at(self, t: float) -> np.ndarray | None:
-        """Values at IMU time ``t`` by linear interpolation between the two latest epochs, else None."""
-        if self._prev is None or not self._prev[0] <= t <= self._last[0] \
-                or self._last[0] - self._prev[0] > self.max_gap_s:
-            self.counters.unaided_queries += 1
-            return None
-        f = (t - self._prev[0]) / (self._last[0] - self._prev[0])
-        return self._prev[1:] + f * (self._last[1:] - self._prev[1:])
+        """Values (width,) at one IMU time, or None."""
+        value = self.values_at(np.array([t]))[0]
+        return None if np.isnan(value[0]) else value
+
+    def release(self, t: float) -> None:
+        """Forget the epochs no query from time ``t`` on needs (all but the last one at or before it)."""
+        keep = max(int(np.searchsorted(self._epochs[:self._n, 0], t, side="right")) - 1, 0)
+        if keep:
+            self._epochs[:self._n - keep] = self._epochs[keep:self._n]
+            self._n -= keep

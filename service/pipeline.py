@@ -77,6 +77,9 @@ class AlignmentPipeline:
         (compass alone, for evaluation), skipping the coarse stage.
     """
 
+    aid_width = 0
+    """Aiding values per sample that :meth:`process` takes (0: none; aided pipelines set it)."""
+
     def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
                  live: bool = False, initial_q_b_n: np.ndarray | None = None) -> None:
         a, f = config.alignment, config.fine
@@ -97,17 +100,15 @@ class AlignmentPipeline:
         self._disturbed_until = -np.inf
         self._reference_C_b0_n0: np.ndarray | None = None
         self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
-        self._pending = np.empty((self.block_samples, 7))
+        self._pending = np.empty((self.block_samples, 7 + self.aid_width))
         self._n_pending = 0
         self._epoch_count: int | None = None
         self._emitted_count = -(2**62)
 
     def _start_estimators(self, t_start: float | None = None) -> None:
         """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
-        a, f = self.config.alignment, self.config.fine
-        self.coarse = InertialCoarseAlignment(
-            FixedSiteSource(self.site), self.grade, make_solver(a.solver, a.request_rho),
-            self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+        f = self.config.fine
+        self.coarse = self._make_coarse()
         self.fine: FineAlignment | None = None
         if self._with_fine:
             self.fine = FineAlignment(self.site, self.grade,
@@ -120,16 +121,26 @@ class AlignmentPipeline:
         self._lagged_C_b0_n0: np.ndarray | None = None
         self._next_check_s = self.config.disturbance.check_interval_s
 
+    def _make_coarse(self) -> InertialCoarseAlignment:
+        a = self.config.alignment
+        return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, make_solver(a.solver, a.request_rho),
+                                       self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+
     def _epoch_counts(self, t: np.ndarray) -> np.ndarray:
         # the sample within half a period of k·P carries epoch k
         return np.floor((t + 0.5 * self.sample_period_s) / self.period_s).astype(np.int64)
 
-    def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> list[ResultRecord]:
-        """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s); return the records completed by them."""
+    def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
+                aid: np.ndarray | None = None) -> list[ResultRecord]:
+        """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, and for an aided pipeline the aiding
+        values at the samples, aid (N, ``aid_width``), NaN where none); return the records they complete."""
         t = np.asarray(t, dtype=float).reshape(-1)
         if len(t) == 0:
             return []
-        samples = np.column_stack((t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))))
+        columns = [t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))]
+        if self.aid_width:
+            columns.append(np.reshape(aid, (-1, self.aid_width)))
+        samples = np.column_stack(columns)
         if self._epoch_count is None:
             self._epoch_count = int(self._epoch_counts(np.asarray([t[0] - self.sample_period_s]))[0])
             self._t_step = float(t[0]) - self.sample_period_s
@@ -164,7 +175,7 @@ class AlignmentPipeline:
             return
         scratch = self.coarse.scratch()
         elapsed, q_b_b0, alpha = scratch.integrate(pending[:, 0], pending[:, 1:4], pending[:, 4:7])
-        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha)
+        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, self._aid(pending))
         folded = 0
         for j in new:
             folded = _fold_until(scratch.solver, due, dK, trace_R, folded, j)
@@ -177,7 +188,8 @@ class AlignmentPipeline:
         M = self.block_samples
         t = samples[:, 0]
         elapsed, q_b_b0, alpha = self.coarse.integrate(t, samples[:, 1:4], samples[:, 4:7], M)
-        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha)
+        aid = self._aid(samples)
+        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, aid)
         counts = self._epoch_counts(t)
         epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
         self._epoch_count = int(counts[-1])
@@ -191,17 +203,22 @@ class AlignmentPipeline:
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
             folded = _fold_until(solver, due, dK, trace_R, folded, end)
-            self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end])
+            self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
+                               None if aid is None else aid[end])
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
                     self._process_blocks(samples[end + 1:], records)
                 return
 
-    def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
+    def _aid(self, samples: np.ndarray) -> np.ndarray | None:
+        return samples[:, 7:] if self.aid_width else None
+
+    def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray,
+                      aid: np.ndarray | None) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
         self._alpha_step, self._t_step = alpha, t_end
-        self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s)
+        self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid)
         d = self.config.disturbance
         if d.enabled and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + d.check_interval_s
@@ -253,7 +270,7 @@ class AlignmentPipeline:
             self._reference_C_b0_n0 = self.coarse.source.C_n_n0(elapsed_s) @ trusted @ C_b_b0.T
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
-                    dt_s: float) -> None:
+                    dt_s: float, aid: np.ndarray | None) -> None:
         if self.fine is None:
             return
         if not self.fine.active and self._initial_C_b_n is not None:

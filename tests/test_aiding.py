@@ -54,7 +54,7 @@ def test_a_bad_cell_names_file_line_and_column_and_disorder_is_not_fatal(tmp_pat
 
 
 def test_track_shifts_by_latency_and_interpolates_exactly():
-    track = AidingTrack(latency_s=0.05)
+    track = AidingTrack(2, latency_s=0.05)
     track.push(np.array([[1.05, 10.0, 0.0], [2.05, 20.0, 4.0]]))
     assert track.latest_time == pytest.approx(2.0)
     assert track.at(1.25) == pytest.approx([12.5, 1.0])
@@ -62,7 +62,7 @@ def test_track_shifts_by_latency_and_interpolates_exactly():
 
 
 def test_track_counts_repeats_disorder_non_finite_and_gaps():
-    track = AidingTrack(max_gap_s=1.0)
+    track = AidingTrack(1, max_gap_s=1.0)
     track.push(np.array([[1.0, 1.0], [1.0, 1.0], [0.5, 1.0], [1.5, np.nan], [4.0, 2.0]]))
     c = track.counters
     assert (c.epochs, c.repeats, c.out_of_order, c.non_finite, c.gaps) == (2, 1, 1, 1, 1)

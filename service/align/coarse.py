@@ -67,6 +67,7 @@ class InertialCoarseAlignment:
         self.t0: float | None = None
         self.t: float | None = None
         self._obs_count = 0
+        self.unaided_observations = 0
 
     def update(self, dtheta: np.ndarray, dv: np.ndarray, t: float) -> None:
         """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
@@ -91,14 +92,22 @@ class InertialCoarseAlignment:
         self.t = float(t[-1])
         return t - self.t0, q_b_b0, alpha
 
-    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray,
-                alpha: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The observations due among integrated samples: (sample indices, δK, tr R) for the solver's fold."""
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The observations due among integrated samples: (sample indices, δK, tr R) for the solver's fold.
+
+        ``aid`` (N, k): aiding values at the samples (NaN where none), for an aided source; an
+        observation due at a sample without them is skipped and counted.
+        """
         # observation k is due at k·interval; a sample within half a period of it takes it
         counts = np.floor((elapsed_s + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
         due = np.flatnonzero(np.diff(counts, prepend=self._obs_count) > 0)
         self._obs_count = int(counts[-1])
-        b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due])
+        if aid is not None:
+            usable = np.isfinite(aid[due]).all(axis=1)
+            self.unaided_observations += int(len(due) - usable.sum())
+            due = due[usable]
+        b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due], None if aid is None else aid[due])
         mu = self.grade.observation_variance(elapsed_s[due], self._gravity, self.disturbance_velocity_mps)
         return (due, *self.solver.prepare(b, r, mu))
 
@@ -110,6 +119,7 @@ class InertialCoarseAlignment:
         """
         clone = copy.copy(self)
         clone.integrator = copy.copy(self.integrator)
+        clone.source = copy.copy(self.source)   # an aided source's store: the clone writes only past its end
         clone.solver = copy.copy(self.solver)
         return clone
 

@@ -19,8 +19,11 @@ class ObservationSource(Protocol):
     site: Site
     """Position at the alignment start (sets latitude and gravity of the σ model)."""
 
-    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(b, r), each (M, 3), not necessarily unit, at M epochs ``elapsed_s`` after the start."""
+    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """(b, r), each (M, 3), not necessarily unit, at M epochs ``elapsed_s`` after the start.
+
+        ``aid`` (M, k): the aiding values at those epochs (all finite), for aided sources."""
         ...
 
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:
@@ -35,7 +38,8 @@ class FixedSiteSource:
         self.site = site
         self._gravity = site.gravity
 
-    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         return alpha_b0, beta_fixed(self.site.lat, self._gravity, elapsed_s)
 
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:

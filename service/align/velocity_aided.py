@@ -5,13 +5,15 @@ Exact identity: C_b^n(0) α(t) = β(t) with
 (signs as the fixed-site source: with V = 0 they are ∫ C f and −∫ C g). β needs V^n = C_b^n V^b,
 hence an attitude, and C_{n(t)}^{n0} turns with the Earth rate *and* the transport rate of the
 position the velocity carries. The multistage method: level 1 is the traditional V^b model
-(β = −∫ C_n^{n0} g^n, no ω_ie × V^n term, no transport); each further level recomputes β over the
-stored window with the previous level's attitude (dual-velocity model) and solves again.
-Each level's error shrinks by about four; the first aiding sample V^b(0) is one noisy constant in
-every α, so the solver must absorb constants common to all pairs (``CentredWahba``).
+(β = −∫ C_n^{n0} g^n with the Earth rate only: the fixed-site closed form); each further level
+recomputes β over the stored window with the previous level's attitude (dual-velocity model) and
+solves again. Each level's error shrinks by about four. The first aiding sample V^b(0) is one
+noisy constant in every α, so the solver must absorb constants common to all pairs
+(``CentredWahba``, the default of the aided modes).
 
-This module holds the offline core over a stored window; the streaming pipeline around it (a
-bounded window, levels in slices, the live daemon) is the aided-mode issue's next step.
+:class:`VelocityAidedSource` is the streaming observation source: it stores the first
+``window_s`` seconds of observations (bounded: window / interval rows) and re-runs the levels on
+them when asked (:meth:`VelocityAidedSource.relevel`); :func:`multistage` is the offline core.
 """
 from __future__ import annotations
 
@@ -19,10 +21,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .compass import rotation_matrix
-from .conventions import cross, dcm_from_quat
-from .earth import Site, earth_rate_n, normal_gravity, position_rate, transport_rate_n
+from .conventions import cross, dcm_from_quat, quat_from_rotvec
+from .earth import C_n_n0_fixed, Site, beta_fixed, earth_rate_n, normal_gravity, position_rate, transport_rate_n
 from .solvers import make_solver
+from .strapdown import prefix_quat_product
+
+RESIDUAL_REJECT_FACTOR = 6.0
+"""A pair whose residual exceeds this many times the median residual (robust σ ≈ median / 1.54 for
+3-D Gaussian noise, so about 9σ) is an outlier: a slipping wheel, a DVL glitch."""
+RESIDUAL_FLOOR_MPS = 0.05
+"""Residuals below this are never rejected, however quiet the others (noise-free data)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -41,47 +49,214 @@ class VelocityWindow:
         return self.alpha_f - (self.C_b_b0 @ self.V_b[..., None])[..., 0] + self.V_b0
 
 
-def reference_vectors(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray | None) -> np.ndarray:
-    """β (N, 3) over the window: traditional (``C_b0_n0`` None) or dual-velocity with that attitude.
+@dataclass(frozen=True, slots=True)
+class NavTrack:
+    """Where the window's epochs put the vehicle under one attitude estimate.
 
-    Trapezoidal integration between epochs; position and C_{n}^{n0} advance with the velocity
-    V^n = C_{n0}^{n} C_b0^n0 C_b^{b0} V^b (Earth rate plus transport rate).
+    C_n_n0 (N, 3, 3), position (N, 3) lat rad / lon rad / h m, V^n (N, 3) m/s, β (N, 3) m/s.
     """
-    pos = np.array([start.lat, start.lon, start.height_m])
-    C_n_n0 = np.eye(3)
-    beta = np.zeros(3)
-    out = np.empty((len(window.elapsed_s), 3))
-    previous = None
-    t_prev = 0.0
-    for k, t in enumerate(window.elapsed_s):
-        lat, h = pos[0], pos[2]
-        omega_ie_n = earth_rate_n(lat)
-        minus_g_n = np.array([0.0, 0.0, normal_gravity(lat, h)])
-        if C_b0_n0 is None:
-            V_n = np.zeros(3)
-            integrand = C_n_n0 @ minus_g_n
-        else:
-            V_n = C_n_n0.T @ C_b0_n0 @ window.C_b_b0[k] @ window.V_b[k]
-            integrand = C_n_n0 @ (minus_g_n + cross(omega_ie_n, V_n))
-        if previous is None:   # the first interval starts at the alignment start: hold its integrand
-            previous = integrand
-        beta = beta + 0.5 * (t - t_prev) * (previous + integrand)
-        out[k] = beta
-        step = window.elapsed_s[k + 1] - t if k + 1 < len(window.elapsed_s) else 0.0
-        C_n_n0 = C_n_n0 @ rotation_matrix((omega_ie_n + transport_rate_n(V_n, lat, h)) * step)
-        pos = pos + step * position_rate(V_n, lat, h)
-        previous, t_prev = integrand, t
-    return out
+
+    C_n_n0: np.ndarray
+    position: np.ndarray
+    V_n: np.ndarray
+    beta: np.ndarray
+
+
+def fixed_track(start: Site, elapsed_s: np.ndarray) -> NavTrack:
+    """The traditional model's track: no motion, Earth rate only (level 1)."""
+    n = len(elapsed_s)
+    return NavTrack(C_n_n0_fixed(start.lat, elapsed_s), np.tile([start.lat, start.lon, start.height_m], (n, 1)),
+                    np.zeros((n, 3)), beta_fixed(start.lat, start.gravity, elapsed_s))
+
+
+def _cumulative_trapezoid(elapsed_s: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """∫_0^t rate, holding the first value over the first interval (it starts at the alignment start)."""
+    steps = 0.5 * np.diff(elapsed_s)[:, None] * (rate[1:] + rate[:-1])
+    return elapsed_s[0] * rate[0] + np.concatenate((np.zeros((1, rate.shape[1])), np.cumsum(steps, axis=0)))
+
+
+def dual_velocity_track(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray, previous: NavTrack) -> NavTrack:
+    """β and the track of the dual-velocity model under attitude ``C_b0_n0``, vectorised.
+
+    V^n = C_{n0}^{n} C_b0^n0 C_b^{b0} V^b uses the previous track's C_n^{n0}; position and
+    C_{n}^{n0} (Earth plus transport rate) integrate by the trapezoid rule between epochs with the
+    previous track's latitude and height. One level lags the next by these small terms only, and
+    the levels converge to the exact track together with the attitude.
+    """
+    t = window.elapsed_s
+    V_n = np.einsum("nji,jk,nkl,nl->ni", previous.C_n_n0, C_b0_n0, window.C_b_b0, window.V_b)
+    lat, h = previous.position[:, 0], previous.position[:, 2]
+    position = np.array([start.lat, start.lon, start.height_m]) + _cumulative_trapezoid(
+        t, position_rate(V_n, lat, h))
+    omega_ie_n = earth_rate_n(lat)
+    rate = omega_ie_n + transport_rate_n(V_n, lat, h)
+    dt = np.diff(t, prepend=0.0)
+    # C_{n(t_k)}^{n0}: product of the step rotations, each with the mean rate of its ends
+    mean_rate = np.concatenate((rate[:1], 0.5 * (rate[1:] + rate[:-1])))
+    q = prefix_quat_product(quat_from_rotvec(mean_rate * dt[:, None]))
+    C_n_n0 = dcm_from_quat(q)
+    g_n = np.zeros_like(V_n)
+    g_n[:, 2] = -normal_gravity(lat, h)
+    integrand = np.einsum("nij,nj->ni", C_n_n0, -g_n + cross(omega_ie_n, V_n))
+    return NavTrack(C_n_n0, position, V_n, _cumulative_trapezoid(t, integrand))
+
+
+@dataclass(frozen=True, slots=True)
+class MultistageResult:
+    """Each level's C_b0^n0, the last level's track, which pairs it kept, and the noise covariance
+    (3, 3) rad² of its attitude error in n0 axes (from the residuals of the kept pairs)."""
+
+    levels: list[np.ndarray]
+    track: NavTrack
+    kept: np.ndarray
+    covariance: np.ndarray
+
+
+def _solve(alpha: np.ndarray, beta: np.ndarray, keep: np.ndarray, solver: str) -> np.ndarray:
+    s = make_solver(solver)
+    s.fold(*s.prepare(alpha[keep], beta[keep], np.ones(int(keep.sum()))))
+    return dcm_from_quat(s.quaternion())
+
+
+def centred_residuals(alpha: np.ndarray, beta: np.ndarray, C_b0_n0: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """|α_k − A β_k − c| (N,) with A = C_n0^b0 and the constant c fitted over the kept pairs."""
+    e = alpha - beta @ C_b0_n0     # rows: (C_n0^b0 β_k)ᵀ = β_kᵀ C_b0^n0
+    return np.linalg.norm(e - e[keep].mean(axis=0), axis=1)
+
+
+def attitude_covariance(beta: np.ndarray, residual: np.ndarray, keep: np.ndarray) -> np.ndarray:
+    """σ² (Σ [r̃×]ᵀ[r̃×])⁻¹ (3, 3) of the centred fit: r̃ the centred references, σ² per axis from residuals."""
+    r = beta[keep] - beta[keep].mean(axis=0)
+    n = int(keep.sum())
+    sigma2 = float((residual[keep] ** 2).sum()) / max(3 * n - 9, 1)
+    information = (r * r).sum() * np.eye(3) - r.T @ r
+    return sigma2 * np.linalg.inv(information)
+
+
+def multistage(window: VelocityWindow, start: Site, levels: int = 10, solver: str = "centred",
+               first: np.ndarray | None = None) -> MultistageResult:
+    """Levels 1..``levels`` over the window (level 1 traditional, or ``first`` given: a level-1
+    estimate already at hand); from level 2 on, pairs whose residual is an outlier are left out."""
+    alpha = window.observation_vectors()
+    track = fixed_track(start, window.elapsed_s)
+    keep = np.ones(len(alpha), dtype=bool)
+    estimates = [_solve(alpha, track.beta, keep, solver) if first is None else first]
+    for _ in range(levels - 1):
+        track = dual_velocity_track(window, start, estimates[-1], track)
+        estimate = _solve(alpha, track.beta, keep, solver)
+        residual = centred_residuals(alpha, track.beta, estimate, keep)
+        limit = max(RESIDUAL_REJECT_FACTOR * float(np.median(residual[keep])), RESIDUAL_FLOOR_MPS)
+        outliers = keep & (residual > limit)
+        if outliers.any():
+            keep = keep & ~outliers
+            estimate = _solve(alpha, track.beta, keep, solver)
+        estimates.append(estimate)
+    residual = centred_residuals(alpha, track.beta, estimates[-1], keep)
+    return MultistageResult(estimates, track, keep, attitude_covariance(track.beta, residual, keep))
 
 
 def multistage_alignment(window: VelocityWindow, start: Site, levels: int = 10,
                          solver: str = "centred") -> list[np.ndarray]:
     """C_{b0}^{n0} (3, 3) after each level: level 1 traditional, then dual-velocity re-runs."""
-    alpha = window.observation_vectors()
-    estimates: list[np.ndarray] = []
-    for _ in range(levels):
-        beta = reference_vectors(window, start, estimates[-1] if estimates else None)
-        s = make_solver(solver)
-        s.fold(*s.prepare(alpha, beta, np.ones(len(alpha))))
-        estimates.append(dcm_from_quat(s.quaternion()))
-    return estimates
+    return multistage(window, start, levels, solver).levels
+
+
+class VelocityAidedSource:
+    """Observation source of a base moving with a measured body velocity V^b (odometer, DVL).
+
+    Pairs: b = α (above, with V^b of the observation epoch), r = β of the traditional model (the
+    running solver's level 1). The first ``window_s`` seconds of observations are stored; after
+    :meth:`relevel` the multistage estimate and its track replace level 1, and C_{n}^{n0} follows
+    the position its velocity carries (Earth plus transport rate), also beyond the window.
+
+    site : position at the alignment start. window_s, obs_interval_s : size the store.
+    levels : multistage levels. solver : the solver of each level.
+    """
+
+    aid_width = 3
+
+    def __init__(self, site: Site, window_s: float, obs_interval_s: float, levels: int = 10,
+                 solver: str = "centred") -> None:
+        self.site = site
+        self.levels = levels
+        self.solver = solver
+        self._store = np.empty((int(np.ceil(window_s / obs_interval_s + 1e-9)), 16))
+        self._n = 0
+        self.V_b0: np.ndarray | None = None
+        self.result: MultistageResult | None = None
+        self._head: tuple[float, np.ndarray, np.ndarray] | None = None   # (elapsed, C_n_n0, position) latest
+
+    @property
+    def window_full(self) -> bool:
+        return self._n == len(self._store)
+
+    @property
+    def stored(self) -> int:
+        return self._n
+
+    @property
+    def C_b0_n0(self) -> np.ndarray | None:
+        """The multistage estimate of C_b0^n0, None before the first :meth:`relevel`."""
+        return None if self.result is None else self.result.levels[-1]
+
+    def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        if aid is None:
+            raise ValueError("a velocity-aided source needs V^b at every observation")
+        V_b, C_b_b0 = aid, dcm_from_quat(q_b_b0)
+        if len(elapsed_s) and self.V_b0 is None:
+            self.V_b0 = V_b[0].copy()
+        fits = min(len(elapsed_s), len(self._store) - self._n)
+        if fits:
+            rows = self._store[self._n:self._n + fits]
+            rows[:, 0], rows[:, 1:4], rows[:, 4:13], rows[:, 13:] = (
+                elapsed_s[:fits], alpha_b0[:fits], C_b_b0[:fits].reshape(-1, 9), V_b[:fits])
+            self._n += fits
+        if self.result is not None:
+            for k in range(fits, len(elapsed_s)):   # beyond the window: carry the track on
+                self._advance(elapsed_s[k], C_b_b0[k], V_b[k])
+        b = alpha_b0 - (C_b_b0 @ V_b[..., None])[..., 0] + (self.V_b0 if self.V_b0 is not None else 0.0)
+        return b, beta_fixed(self.site.lat, self.site.gravity, elapsed_s)
+
+    def window(self) -> VelocityWindow:
+        rows = self._store[:self._n]
+        return VelocityWindow(rows[:, 0], rows[:, 1:4], rows[:, 4:13].reshape(-1, 3, 3), rows[:, 13:],
+                              self.V_b0 if self.V_b0 is not None else np.zeros(3))
+
+    def relevel(self, first: np.ndarray | None = None) -> MultistageResult | None:
+        """Re-run the levels over the stored window (``first``: the running level-1 estimate)."""
+        if self._n < 10:
+            return None
+        self.result = multistage(self.window(), self.site, self.levels, self.solver, first)
+        track = self.result.track
+        self._head = (float(self._store[self._n - 1, 0]), track.C_n_n0[-1], track.position[-1])
+        return self.result
+
+    def _advance(self, elapsed_s: float, C_b_b0: np.ndarray, V_b: np.ndarray) -> None:
+        t, C_n_n0, position = self._head
+        V_n = C_n_n0.T @ self.C_b0_n0 @ C_b_b0 @ V_b
+        lat, h = position[0], position[2]
+        rate = earth_rate_n(lat) + transport_rate_n(V_n, lat, h)
+        dt = elapsed_s - t
+        self._head = (elapsed_s, C_n_n0 @ dcm_from_quat(quat_from_rotvec(rate * dt)),
+                      position + dt * position_rate(V_n, lat, h))
+
+    def C_n_n0(self, elapsed_s: float) -> np.ndarray:
+        if self._head is None:
+            return C_n_n0_fixed(self.site.lat, elapsed_s)
+        t, C_n_n0, position = self._head
+        rate = earth_rate_n(position[0])   # the transport rate over a fraction of a step is below 1e-6 rad
+        return C_n_n0 @ dcm_from_quat(quat_from_rotvec(rate * (elapsed_s - t)))
+
+    @property
+    def position(self) -> np.ndarray:
+        """(lat rad, lon rad, h m) at the latest observation (the start before any relevel)."""
+        return np.array([self.site.lat, self.site.lon, self.site.height_m]) if self._head is None else self._head[2]
+
+    def sigma_rad(self) -> tuple[float, float] | None:
+        """1-sigma (heading, level) noise errors of the multistage estimate, rad, or None."""
+        if self.result is None:
+            return None
+        P = self.result.covariance
+        return float(np.sqrt(P[2, 2])), float(np.sqrt(0.5 * (P[0, 0] + P[1, 1])))
+
