@@ -12,6 +12,7 @@ memory is bounded by the aiding latency (daemon) or the replay chunk, whatever t
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,3 +101,28 @@ class AidingTrack:
         if keep:
             self._epochs[:self._n - keep] = self._epochs[keep:self._n]
             self._n -= keep
+
+
+class AidingFeed:
+    """An aiding stream read as far ahead as the IMU samples need it (a log, a simulated sensor).
+
+    ``blocks`` yields epoch arrays (N, 1 + width) in the stream's order; :meth:`values_at` pulls
+    blocks into the track until it reaches the last IMU time asked for, then interpolates.
+    """
+
+    def __init__(self, track: AidingTrack, blocks: Iterator[np.ndarray]) -> None:
+        self.track = track
+        self._blocks = blocks
+        self._exhausted = False
+
+    def values_at(self, t: np.ndarray) -> np.ndarray:
+        """Values (N, width) at IMU times t (N,), increasing; NaN where the stream has nothing."""
+        while not self._exhausted and (self.track.latest_time is None or self.track.latest_time < t[-1]):
+            block = next(self._blocks, None)
+            if block is None:
+                self._exhausted = True
+            else:
+                self.track.push(block)
+        values = self.track.values_at(t)
+        self.track.release(float(t[-1]))
+        return values

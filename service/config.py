@@ -63,6 +63,30 @@ class FineConfig:
     live_pass_steps: int = 40
 
 
+@dataclass(frozen=True, slots=True)
+class AidingConfig:
+    """Aided modes (selected by the aids given, e.g. ``--aid odo=FILE``): streams, coarse levels, Kalman.
+
+    Odometer / DVL: latency of its time stamps, noise (a log's ``vel_std_mps`` overrides), lever arm
+    from the IMU (body axes, m), and the Kalman stage's priors of its scale factor and lever arm
+    (0: not estimated). Coarse: the multistage window (s, bounded store of window / obs interval
+    rows), its levels, how often they are re-run, the solver of each level. ``max_gap_s``: epochs
+    further apart are not interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
+    """
+
+    odo_latency_s: float = 0.0
+    odo_std_mps: float = 0.03
+    odo_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
+    odo_scale_sigma: float = 0.0
+    odo_lever_sigma_m: float = 0.0
+    window_s: float = 120.0
+    levels: int = 10
+    relevel_interval_s: float = 1.0
+    solver: str = "centred"
+    max_gap_s: float = 0.5
+    gate_chi2: float = 16.3
+
+
 HANDOVERS = ("sigma", "time")
 ZENOH_MODES = ("", "peer", "client", "router")
 
@@ -139,6 +163,7 @@ class Config:
     alignment: AlignmentConfig = field(default_factory=AlignmentConfig)
     fine: FineConfig = field(default_factory=FineConfig)
     disturbance: DisturbanceConfig = field(default_factory=DisturbanceConfig)
+    aiding: AidingConfig = field(default_factory=AidingConfig)
     site: SiteConfig = field(default_factory=SiteConfig)
     imu: ImuConfig = field(default_factory=ImuConfig)
     serial: SerialConfig = field(default_factory=SerialConfig)
@@ -162,6 +187,11 @@ def _check(config: Config) -> Config:
             UnitKeys(z.prefix if key == "zenoh.prefix" else "p", text if key == "zenoh.unit" else "u")
         except ValueError as exc:
             raise ConfigError(f"{key}: {exc}") from None
+    ad = config.aiding
+    if ad.solver not in SOLVERS:
+        raise ConfigError(f"aiding.solver: {ad.solver!r} is not one of {', '.join(SOLVERS)}")
+    if len(ad.odo_lever_m) != 3:
+        raise ConfigError(f"aiding.odo_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.odo_lever_m)}")
     if config.disturbance.action not in DISTURBANCE_ACTIONS:
         raise ConfigError(f"disturbance.action: {config.disturbance.action!r} is not one of "
                           f"{', '.join(DISTURBANCE_ACTIONS)}")
@@ -193,6 +223,15 @@ def _check(config: Config) -> Config:
         ("disturbance.tilt_jump_deg", config.disturbance.tilt_jump_deg > 0.0, "must be > 0"),
         ("disturbance.check_interval_s", config.disturbance.check_interval_s > 0.0, "must be > 0"),
         ("disturbance.hold_s", config.disturbance.hold_s >= 0.0, "must be ≥ 0"),
+        ("aiding.odo_latency_s", 0.0 <= ad.odo_latency_s <= 10.0, "must be in [0, 10]"),
+        ("aiding.odo_std_mps", ad.odo_std_mps > 0.0, "must be > 0"),
+        ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
+        ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),
+        ("aiding.window_s", 1.0 <= ad.window_s <= 3600.0, "must be in [1, 3600]"),
+        ("aiding.levels", 1 <= ad.levels <= 50, "must be in 1..50"),
+        ("aiding.relevel_interval_s", ad.relevel_interval_s > 0.0, "must be > 0"),
+        ("aiding.max_gap_s", ad.max_gap_s > 0.0, "must be > 0"),
+        ("aiding.gate_chi2", ad.gate_chi2 > 0.0, "must be > 0"),
         ("daemon.max_bridge_samples", 0 <= config.daemon.max_bridge_samples <= 1000, "must be in 0..1000"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
     for key, ok, rule in checks:

@@ -79,6 +79,8 @@ class AlignmentPipeline:
 
     aid_width = 0
     """Aiding values per sample that :meth:`process` takes (0: none; aided pipelines set it)."""
+    checks_translation = True
+    """Whether a base that translates is a disturbance (not for a base meant to move)."""
 
     def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
                  live: bool = False, initial_q_b_n: np.ndarray | None = None) -> None:
@@ -107,24 +109,30 @@ class AlignmentPipeline:
 
     def _start_estimators(self, t_start: float | None = None) -> None:
         """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
-        f = self.config.fine
         self.coarse = self._make_coarse()
-        self.fine: FineAlignment | None = None
-        if self._with_fine:
-            self.fine = FineAlignment(self.site, self.grade,
-                                      GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
-                                      self.block_samples * self.sample_period_s, f.stored_data_s, f.stored_pairs,
-                                      f.live_pass_steps if self._live else None)
+        self.fine = self._make_fine()
         self._alpha_step = np.zeros(3)
         self._t_step = t_start
         self._restarted = t_start is not None
         self._lagged_C_b0_n0: np.ndarray | None = None
         self._next_check_s = self.config.disturbance.check_interval_s
 
+    def aiding_counters(self) -> dict[str, int]:
+        """What the estimators made of aiding inputs (none here; aided pipelines count theirs)."""
+        return {}
+
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment
         return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, make_solver(a.solver, a.request_rho),
                                        self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+
+    def _make_fine(self) -> FineAlignment | None:
+        if not self._with_fine:
+            return None
+        f = self.config.fine
+        return FineAlignment(self.site, self.grade, GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
+                             self.block_samples * self.sample_period_s, f.stored_data_s, f.stored_pairs,
+                             f.live_pass_steps if self._live else None)
 
     def _epoch_counts(self, t: np.ndarray) -> np.ndarray:
         # the sample within half a period of k·P carries epoch k
@@ -220,7 +228,7 @@ class AlignmentPipeline:
         self._alpha_step, self._t_step = alpha, t_end
         self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid)
         d = self.config.disturbance
-        if d.enabled and elapsed_s >= self._next_check_s:
+        if d.enabled and self.checks_translation and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + d.check_interval_s
             self._check_translation(t_end, elapsed_s, q_b_b0, alpha)
 

@@ -70,16 +70,18 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if args.duration:
         scenario = replace(scenario, duration_s=args.duration)
     files = write_simulation(scenario, args.seed, args.out_dir)
-    print(f"wrote {files.imu_csv} and {files.truth_csv} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
+    odo = f" and {files.odo_csv}" if files.odo_csv else ""
+    print(f"wrote {files.imu_csv}, {files.truth_csv}{odo} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
     return 0
 
 
 def cmd_replay(args: argparse.Namespace) -> int:
     from sinsalign.service.config import load_config
-    from sinsalign.tools.replay import replay
+    from sinsalign.tools.replay import parse_aids, replay
     config = load_config(args.config, _overrides(args))
     start = time.perf_counter()
-    summary = replay(args.imu_csv, args.out, config, progress=None if not args.no_progress else False)
+    summary = replay(args.imu_csv, args.out, config, progress=None if not args.no_progress else False,
+                     aids=parse_aids(args.aid))
     elapsed = time.perf_counter() - start
     last = summary.last
     print(f"{summary.samples} samples → {summary.records} results in {args.out} "
@@ -321,6 +323,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, metavar="RESULTS.jsonl")
     p.add_argument("--period", type=float, metavar="S", help="output period (default 1 s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--aid", action="append", metavar="KIND=FILE",
+                   help="an aiding log (pinned format, same time base): odo=ODO.csv selects in-motion alignment "
+                   "with odometer/DVL body velocity (multistage coarse window, then a Kalman stage); repeatable")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_replay)
 

@@ -79,3 +79,31 @@ def test_fuzz_aiding_reader_gives_only_format_errors(tmp_path, text):
             pass
     except LogFormatError:
         pass
+
+
+def test_track_interpolates_many_times_at_once_and_forgets_what_is_passed():
+    track = AidingTrack(1, max_gap_s=0.5)
+    track.push(np.column_stack((np.arange(10) * 0.1, np.arange(10.0))))
+    values = track.values_at(np.array([-0.05, 0.05, 0.45, 0.9, 0.95]))
+    assert np.isnan(values[0, 0]) and np.isnan(values[-1, 0]) and track.counters.unaided_queries == 2
+    assert values[1:4, 0] == pytest.approx([0.5, 4.5, 9.0])
+    track.release(0.45)
+    assert track.values_at(np.array([0.45]))[0, 0] == pytest.approx(4.5)
+    assert np.isnan(track.values_at(np.array([0.35]))[0, 0])       # forgotten: before the epochs it keeps
+
+
+def test_feed_reads_ahead_only_as_far_as_the_imu_needs():
+    from sinsalign.service.aiding import AidingFeed
+    blocks = [np.column_stack((np.arange(k, k + 10) * 0.1, np.arange(k, k + 10.0))) for k in range(0, 100, 10)]
+    pulled = []
+
+    def source():
+        for b in blocks:
+            pulled.append(b)
+            yield b
+
+    feed = AidingFeed(AidingTrack(1), source())
+    assert feed.values_at(np.array([0.15, 0.25]))[:, 0] == pytest.approx([1.5, 2.5])
+    assert len(pulled) == 1
+    assert feed.values_at(np.array([2.55]))[0, 0] == pytest.approx(25.5) and len(pulled) == 3
+    assert np.isnan(feed.values_at(np.array([20.0]))[0, 0])         # past the end: nothing, no error

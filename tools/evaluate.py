@@ -9,16 +9,19 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 from rich.progress import Progress
+from sinsalign.service.aided_pipeline import build_pipeline
+from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment, quat_from_dcm, skew
 from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 
+from .sim.aiding import odometer_epochs, with_odometer_faults
 from .sim.imu import simulate
 from .sim.scenarios import Scenario, get_scenario
 
@@ -40,6 +43,7 @@ class RunResult:
     converged: np.ndarray
     limit_deg: np.ndarray
     disturbances: int = 0
+    counters: dict[str, int] | None = None
 
 
 def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
@@ -51,40 +55,58 @@ def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
 
 
 def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: Sequence[float] | None = None,
-             live: bool = False) -> RunResult:
+             live: bool = False, odometer_faults: dict | None = None) -> RunResult:
     """Simulate one seed in memory and run the pipeline over it (the scenario's datasheet grade, as its log states).
 
     ``initial_error_deg`` (φ_E, φ_N, φ_U) starts the compass loops alone from the truth at t = 0 turned by that
-    misalignment, without the coarse stage (seed 001's compass-only runs).
+    misalignment, without the coarse stage (seed 001's compass-only runs). A scenario with an odometer runs the
+    velocity-aided pipeline, its readings going through the same aiding track as a log's;
+    ``odometer_faults`` are keyword arguments of :func:`with_odometer_faults`.
     """
+    scenario = scenario.for_seed(seed)
     initial = None
     if initial_error_deg is not None:
         phi = np.asarray(initial_error_deg, dtype=float) * DEG
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
-    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
-                                 initial_q_b_n=initial)
+    feed = None
+    if scenario.odometer is None:
+        pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
+                                     initial_q_b_n=initial)
+    else:
+        epochs = with_odometer_faults(odometer_epochs(scenario, seed), **(odometer_faults or {}), seed=seed)
+        odo_std = scenario.odometer.noise_mps or None
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(),
+                                  {"odo": odo_std}, live)
+        feed = AidingFeed(AidingTrack(3, config.aiding.odo_latency_s, config.aiding.max_gap_s), iter([epochs]))
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                           seed):
-        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv)
+        aid = None if feed is None else feed.values_at(chunk.t)
+        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, aid)
+    counters = None if feed is None else {**feed.track.counters.as_dict(), **pipeline.aiding_counters()}
     t = np.array([r.t for r in records])
     C_est = dcm_from_quat(np.array([r.q for r in records]))
     phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
                      np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
-                     run_limit_deg(scenario, t), pipeline.disturbances)
+                     run_limit_deg(scenario, t), pipeline.disturbances, counters)
 
 
-def _run_task(args: tuple[str, int, dict, Sequence[float] | None]) -> RunResult:
-    name, seed, overrides, initial_error_deg = args
-    return run_once(get_scenario(name), seed, config_from_mapping(overrides), initial_error_deg)
+def _run_task(args: tuple[str, int, dict, Sequence[float] | None, dict | None, float | None]) -> RunResult:
+    name, seed, overrides, initial_error_deg, odometer_faults, duration_s = args
+    scenario = get_scenario(name)
+    if duration_s is not None:
+        scenario = replace(scenario, duration_s=duration_s)
+    return run_once(scenario, seed, config_from_mapping(overrides), initial_error_deg,
+                    odometer_faults=odometer_faults)
 
 
 def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
-                progress: bool = True, label: str = "",
-                initial_error_deg: Sequence[float] | None = None) -> list[RunResult]:
-    """Run every seed (in parallel processes); results in seed order. See :func:`run_once`."""
-    tasks = [(scenario_name, s, overrides or {}, initial_error_deg) for s in seeds]
+                progress: bool = True, label: str = "", initial_error_deg: Sequence[float] | None = None,
+                odometer_faults: dict | None = None, duration_s: float | None = None) -> list[RunResult]:
+    """Run every seed (in parallel processes); results in seed order. See :func:`run_once`;
+    ``duration_s`` cuts the scenario short."""
+    tasks = [(scenario_name, s, overrides or {}, initial_error_deg, odometer_faults, duration_s) for s in seeds]
     workers = workers or min(len(tasks), os.cpu_count() or 1)
     results = []
     with Progress(disable=not progress, transient=True) as bar:

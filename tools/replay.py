@@ -7,12 +7,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.protocol.results import ResultRecord
+from sinsalign.service.aided_pipeline import build_pipeline
+from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
-from sinsalign.service.config import Config
-from sinsalign.service.pipeline import AlignmentPipeline
+from sinsalign.service.config import Config, ConfigError
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,16 +24,44 @@ class ReplaySummary:
     last: ResultRecord | None
 
 
-def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress: bool | None = None) -> ReplaySummary:
-    """Process ``imu_csv`` and write one result per output epoch to ``out_jsonl``.
+def parse_aids(specs: list[str] | None) -> dict[str, str]:
+    """``["odo=ODO.csv", …]`` → {"odo": "ODO.csv"}; a bad spec or a kind given twice is a ConfigError."""
+    aids: dict[str, str] = {}
+    for spec in specs or []:
+        kind, sep, path = spec.partition("=")
+        if not sep or not path or kind not in KINDS:
+            raise ConfigError(f"--aid {spec!r}: expected KIND=FILE with KIND one of {', '.join(KINDS)}")
+        if kind in aids:
+            raise ConfigError(f"--aid {kind}: given twice")
+        aids[kind] = path
+    return aids
+
+
+def open_aids(aids: dict[str, str], config: Config) -> tuple[dict[str, float | None], dict[str, AidingFeed]]:
+    """Each aiding log opened as a feed (latency, gaps from the configuration) and its noise σ key, if any."""
+    noise, feeds = {}, {}
+    for kind, path in aids.items():
+        log = open_aiding_log(kind, path)
+        noise[kind] = log.std("vel_std_mps")
+        feeds[kind] = AidingFeed(AidingTrack(len(log.kind.columns) - 1, getattr(config.aiding, f"{kind}_latency_s"),
+                                             config.aiding.max_gap_s), log.blocks())
+    return noise, feeds
+
+
+def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress: bool | None = None,
+           aids: dict[str, str] | None = None) -> ReplaySummary:
+    """Process ``imu_csv`` (with aiding logs ``aids``: kind → path) and write one result per output
+    epoch to ``out_jsonl``.
 
     Raises LogFormatError (file, line, column named) on a malformed log; ``out_jsonl`` is then
     left as it was (results go to a temporary file that replaces it only on success).
     """
     log = open_imu_log(imu_csv)
     h = log.header
-    pipeline = AlignmentPipeline(config, Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m), h.rate_hz,
-                                 h.datasheet())
+    noise, feeds = open_aids(aids or {}, config)
+    pipeline = build_pipeline(config, Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m), h.rate_hz, h.datasheet(),
+                              noise)
+    aid_feed = feeds.get("odo")
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
     samples = records = 0
@@ -44,7 +74,8 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
                 disable=not show, transient=True) as bar:
             task = bar.add_task("replay", total=size, info="")
             for t, dtheta, dv in log.blocks():
-                for record in pipeline.process(t, dtheta, dv):
+                aid = None if aid_feed is None else aid_feed.values_at(t)
+                for record in pipeline.process(t, dtheta, dv, aid):
                     out.write(record.to_json() + "\n")
                     records += 1
                     last = record

@@ -21,8 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .conventions import cross, dcm_from_quat, quat_from_rotvec
+from .coarse import InertialCoarseAlignment
+from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec
 from .earth import C_n_n0_fixed, Site, beta_fixed, earth_rate_n, normal_gravity, position_rate, transport_rate_n
+from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, bias_limit_rad
 from .solvers import make_solver
 from .strapdown import prefix_quat_product
 
@@ -103,13 +105,15 @@ def dual_velocity_track(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray
 
 @dataclass(frozen=True, slots=True)
 class MultistageResult:
-    """Each level's C_b0^n0, the last level's track, which pairs it kept, and the noise covariance
-    (3, 3) rad² of its attitude error in n0 axes (from the residuals of the kept pairs)."""
+    """Each level's C_b0^n0, the last level's track, which pairs it kept, the noise covariance
+    (3, 3) rad² of its attitude error in n0 axes (from the residuals of the kept pairs), and the
+    accelerometer bias (3,) m/s² in body axes it estimated (zero when not asked to)."""
 
     levels: list[np.ndarray]
     track: NavTrack
     kept: np.ndarray
     covariance: np.ndarray
+    acc_bias_ms2: np.ndarray
 
 
 def _solve(alpha: np.ndarray, beta: np.ndarray, keep: np.ndarray, solver: str) -> np.ndarray:
@@ -124,35 +128,82 @@ def centred_residuals(alpha: np.ndarray, beta: np.ndarray, C_b0_n0: np.ndarray, 
     return np.linalg.norm(e - e[keep].mean(axis=0), axis=1)
 
 
-def attitude_covariance(beta: np.ndarray, residual: np.ndarray, keep: np.ndarray) -> np.ndarray:
-    """σ² (Σ [r̃×]ᵀ[r̃×])⁻¹ (3, 3) of the centred fit: r̃ the centred references, σ² per axis from residuals."""
-    r = beta[keep] - beta[keep].mean(axis=0)
-    n = int(keep.sum())
-    sigma2 = float((residual[keep] ** 2).sum()) / max(3 * n - 9, 1)
-    information = (r * r).sum() * np.eye(3) - r.T @ r
-    return sigma2 * np.linalg.inv(information)
+def bias_integral(window: VelocityWindow) -> np.ndarray:
+    """J_k = ∫_0^{t_k} C_b^{b0} dt (N, 3, 3): how a constant accelerometer bias ∇ (body axes) enters α_k."""
+    C = window.C_b_b0
+    t = window.elapsed_s
+    first = 0.5 * t[0] * (np.eye(3) + C[0])
+    steps = 0.5 * np.diff(t)[:, None, None] * (C[1:] + C[:-1])
+    return first + np.concatenate((np.zeros((1, 3, 3)), np.cumsum(steps, axis=0)))
+
+
+def joint_fit(alpha: np.ndarray, beta: np.ndarray, C_b0_n0: np.ndarray, keep: np.ndarray, J: np.ndarray | None,
+              bias_sigma_ms2: float) -> tuple[np.ndarray, np.ndarray]:
+    """Linearised least squares about A = C_n0^b0 of α_k − A β_k = A [β_k×] δθ + c + J_k ∇ + noise.
+
+    δθ (n0 axes) and c are free, ∇ has the prior N(0, bias_sigma²) (turns make it observable; a
+    straight run leaves it to the prior). Returns (∇ (3,) m/s², covariance of δθ (3, 3) rad²) with
+    the noise variance per axis from the residuals.
+    """
+    r = beta[keep]
+    e = alpha[keep] - r @ C_b0_n0
+    G = np.einsum("ij,njk->nik", C_b0_n0.T, skew_rows(r))          # A [β_k×]  (n, 3, 3)
+    n = len(r)
+    with_bias = J is not None and bias_sigma_ms2 > 0.0
+    blocks = [G] + ([J[keep]] if with_bias else [])
+    D = np.concatenate(blocks, axis=2)
+    D = D - D.mean(axis=0)                                      # centring removes c
+    e = e - e.mean(axis=0)
+    M = np.einsum("nki,nkj->ij", D, D)
+    v = np.einsum("nki,nk->i", D, e)
+    x_plain = np.linalg.lstsq(M, v, rcond=None)[0]
+    sigma2 = max(float(((e - np.einsum("nki,i->nk", D, x_plain)) ** 2).sum()) / max(3 * n - 6 - D.shape[2], 1),
+                 1e-12)
+    if with_bias:
+        M = M + np.diag([0.0] * 3 + [sigma2 / bias_sigma_ms2**2] * 3)
+    x = np.linalg.solve(M + 1e-12 * np.trace(M) * np.eye(len(M)), v)
+    covariance = sigma2 * np.linalg.inv(M + 1e-12 * np.trace(M) * np.eye(len(M)))
+    return (x[3:] if with_bias else np.zeros(3)), covariance[:3, :3]
+
+
+def skew_rows(v: np.ndarray) -> np.ndarray:
+    """[v_k×] (N, 3, 3) of rows v (N, 3)."""
+    S = np.zeros((len(v), 3, 3))
+    S[:, 0, 1], S[:, 0, 2], S[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+    S[:, 1, 0], S[:, 2, 0], S[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
+    return S
 
 
 def multistage(window: VelocityWindow, start: Site, levels: int = 10, solver: str = "centred",
-               first: np.ndarray | None = None) -> MultistageResult:
+               first: np.ndarray | None = None, acc_bias_sigma_ms2: float = 0.0) -> MultistageResult:
     """Levels 1..``levels`` over the window (level 1 traditional, or ``first`` given: a level-1
-    estimate already at hand); from level 2 on, pairs whose residual is an outlier are left out."""
+    estimate already at hand); from level 2 on, pairs whose residual is an outlier are left out.
+
+    With ``acc_bias_sigma_ms2`` > 0 each level also estimates the accelerometer bias (:func:`joint_fit`):
+    on a turning vehicle ∫ C_b^{b0} ∇ dt is no longer a tilt and would pull the heading by degrees.
+    """
     alpha = window.observation_vectors()
+    J = bias_integral(window) if acc_bias_sigma_ms2 > 0.0 else None
     track = fixed_track(start, window.elapsed_s)
     keep = np.ones(len(alpha), dtype=bool)
     estimates = [_solve(alpha, track.beta, keep, solver) if first is None else first]
+    nabla = np.zeros(3)
+    covariance = np.full((3, 3), np.nan)
     for _ in range(levels - 1):
         track = dual_velocity_track(window, start, estimates[-1], track)
-        estimate = _solve(alpha, track.beta, keep, solver)
-        residual = centred_residuals(alpha, track.beta, estimate, keep)
+        corrected = alpha if J is None else alpha - J @ nabla
+        estimate = _solve(corrected, track.beta, keep, solver)
+        residual = centred_residuals(corrected, track.beta, estimate, keep)
         limit = max(RESIDUAL_REJECT_FACTOR * float(np.median(residual[keep])), RESIDUAL_FLOOR_MPS)
         outliers = keep & (residual > limit)
         if outliers.any():
             keep = keep & ~outliers
-            estimate = _solve(alpha, track.beta, keep, solver)
+            estimate = _solve(corrected, track.beta, keep, solver)
+        nabla, covariance = joint_fit(alpha, track.beta, estimate, keep, J, acc_bias_sigma_ms2)
         estimates.append(estimate)
-    residual = centred_residuals(alpha, track.beta, estimates[-1], keep)
-    return MultistageResult(estimates, track, keep, attitude_covariance(track.beta, residual, keep))
+    if levels == 1:
+        covariance = joint_fit(alpha, track.beta, estimates[0], keep, None, 0.0)[1]
+    return MultistageResult(estimates, track, keep, covariance, nabla)
 
 
 def multistage_alignment(window: VelocityWindow, start: Site, levels: int = 10,
@@ -171,13 +222,15 @@ class VelocityAidedSource:
 
     site : position at the alignment start. window_s, obs_interval_s : size the store.
     levels : multistage levels. solver : the solver of each level.
+    acc_bias_sigma_ms2 : prior 1-sigma of the accelerometer bias each level estimates (0: none).
     """
 
     aid_width = 3
 
     def __init__(self, site: Site, window_s: float, obs_interval_s: float, levels: int = 10,
-                 solver: str = "centred") -> None:
+                 solver: str = "centred", acc_bias_sigma_ms2: float = 0.0) -> None:
         self.site = site
+        self.acc_bias_sigma_ms2 = acc_bias_sigma_ms2
         self.levels = levels
         self.solver = solver
         self._store = np.empty((int(np.ceil(window_s / obs_interval_s + 1e-9)), 16))
@@ -186,13 +239,9 @@ class VelocityAidedSource:
         self.result: MultistageResult | None = None
         self._head: tuple[float, np.ndarray, np.ndarray] | None = None   # (elapsed, C_n_n0, position) latest
 
-    @property
-    def window_full(self) -> bool:
-        return self._n == len(self._store)
-
-    @property
-    def stored(self) -> int:
-        return self._n
+    def window_full(self, elapsed_s: float) -> bool:
+        """Whether the store holds the whole window by ``elapsed_s`` (rows may be stored ahead of it)."""
+        return self._n == len(self._store) and self._store[-1, 0] <= elapsed_s + 1e-9
 
     @property
     def C_b0_n0(self) -> np.ndarray | None:
@@ -212,27 +261,28 @@ class VelocityAidedSource:
             rows[:, 0], rows[:, 1:4], rows[:, 4:13], rows[:, 13:] = (
                 elapsed_s[:fits], alpha_b0[:fits], C_b_b0[:fits].reshape(-1, 9), V_b[:fits])
             self._n += fits
-        if self.result is not None:
-            for k in range(fits, len(elapsed_s)):   # beyond the window: carry the track on
-                self._advance(elapsed_s[k], C_b_b0[k], V_b[k])
         b = alpha_b0 - (C_b_b0 @ V_b[..., None])[..., 0] + (self.V_b0 if self.V_b0 is not None else 0.0)
         return b, beta_fixed(self.site.lat, self.site.gravity, elapsed_s)
 
-    def window(self) -> VelocityWindow:
-        rows = self._store[:self._n]
+    def window(self, upto_elapsed_s: float = np.inf) -> VelocityWindow:
+        """The stored epochs up to ``upto_elapsed_s`` (a chunk of samples may store rows ahead of the step)."""
+        rows = self._store[:int(np.searchsorted(self._store[:self._n, 0], upto_elapsed_s + 1e-9))]
         return VelocityWindow(rows[:, 0], rows[:, 1:4], rows[:, 4:13].reshape(-1, 3, 3), rows[:, 13:],
                               self.V_b0 if self.V_b0 is not None else np.zeros(3))
 
-    def relevel(self, first: np.ndarray | None = None) -> MultistageResult | None:
-        """Re-run the levels over the stored window (``first``: the running level-1 estimate)."""
-        if self._n < 10:
+    def relevel(self, upto_elapsed_s: float, first: np.ndarray | None = None) -> MultistageResult | None:
+        """Re-run the levels over the epochs stored up to ``upto_elapsed_s`` (``first``: a level-1 estimate
+        to start from instead of the traditional model)."""
+        window = self.window(upto_elapsed_s)
+        if len(window.elapsed_s) < 10:
             return None
-        self.result = multistage(self.window(), self.site, self.levels, self.solver, first)
+        self.result = multistage(window, self.site, self.levels, self.solver, first, self.acc_bias_sigma_ms2)
         track = self.result.track
-        self._head = (float(self._store[self._n - 1, 0]), track.C_n_n0[-1], track.position[-1])
+        self._head = (float(window.elapsed_s[-1]), track.C_n_n0[-1], track.position[-1])
         return self.result
 
-    def _advance(self, elapsed_s: float, C_b_b0: np.ndarray, V_b: np.ndarray) -> None:
+    def advance(self, elapsed_s: float, C_b_b0: np.ndarray, V_b: np.ndarray) -> None:
+        """Carry position and C_n^{n0} on to ``elapsed_s`` with the latest estimate (one control step)."""
         t, C_n_n0, position = self._head
         V_n = C_n_n0.T @ self.C_b0_n0 @ C_b_b0 @ V_b
         lat, h = position[0], position[2]
@@ -260,3 +310,36 @@ class VelocityAidedSource:
         P = self.result.covariance
         return float(np.sqrt(P[2, 2])), float(np.sqrt(0.5 * (P[0, 0] + P[1, 1])))
 
+
+
+class MultistageCoarseAlignment(InertialCoarseAlignment):
+    """The coarse stage of the velocity-aided mode: the core's streaming solver (level 1) until the
+    first :meth:`relevel`, then the source's multistage estimate and its residual-based σ."""
+
+    source: VelocityAidedSource
+
+    def relevel(self, elapsed_s: float) -> None:
+        """Re-run the levels on the window up to ``elapsed_s``, the first level from the previous run's
+        estimate: over successive runs the levels converge to the exact (dual-velocity) solution,
+        however short the early windows were."""
+        self.source.relevel(elapsed_s, self.source.C_b0_n0 if self.source.levels > 1 else None)
+
+    @property
+    def q_b_n0(self) -> np.ndarray:
+        C_b0_n0 = self.source.C_b0_n0
+        return self.solver.quaternion() if C_b0_n0 is None else quat_from_dcm(C_b0_n0)
+
+    def sigma(self, elapsed_s: float) -> tuple[float, float]:
+        """1-sigma (heading, level) in degrees: the fit's noise part (times the estimator efficiency, the
+        same calibration as the fixed-site σ: seed-003 Monte Carlo at 80 m/s, heading STD 0.23° over
+        seeds against a fit σ of 0.17°, a variance ratio of 1.85), the bias limit, and the drift of
+        the integrated body attitude since the start (ε t)."""
+        noise = self.source.sigma_rad()
+        if noise is None:
+            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+        noise = tuple(np.sqrt(ESTIMATOR_EFFICIENCY) * n for n in noise)
+        bias_heading, bias_level = bias_limit_rad(self.grade, self.source.site.lat, self.source.site.gravity)
+        drift = self.grade.gyro_bias_rad_s * max(elapsed_s, 0.0)
+        heading, level = (float(np.sqrt(n**2 + b**2 + drift**2)) / DEG
+                          for n, b in zip(noise, (bias_heading, bias_level), strict=True))
+        return min(heading, SIGMA_UNKNOWN_DEG), min(level, SIGMA_UNKNOWN_DEG)

@@ -14,6 +14,7 @@ from sinsalign.protocol.imu_log import write_header, write_rows
 from sinsalign.service.align.conventions import cross
 from sinsalign.service.align.earth import transport_rate_n
 
+from .scenarios import Scenario
 from .vehicle import VehicleMotion
 
 
@@ -41,3 +42,30 @@ def write_body_velocity_log(path: str | Path, t: np.ndarray, v_b: np.ndarray, ve
         write_header(f, {} if vel_std_mps is None else {"vel_std_mps": vel_std_mps}, KINDS["odo"].columns)
         write_rows(f, np.column_stack((t, v_b)))
     return path
+
+
+def odometer_epochs(scenario: Scenario, seed: int) -> np.ndarray:
+    """The scenario's odometer readings (N, 4): t, V_P^b (seeded; a noise stream apart from the IMU's)."""
+    odo = scenario.odometer
+    t = np.arange(1, round(scenario.duration_s * odo.rate_hz) + 1) / odo.rate_hz
+    v = body_velocity(scenario.motion, t, np.asarray(odo.lever_b), np.full(3, odo.scale), odo.noise_mps,
+                      np.random.default_rng([seed, 3]))
+    return np.column_stack((t, v))
+
+
+def with_odometer_faults(epochs: np.ndarray, dropout_s: tuple[float, float] | None = None,
+                         slip: tuple[float, float, float] | None = None, swapped: int = 0,
+                         seed: int = 0) -> np.ndarray:
+    """Odometer epochs (N, 4) with faults: no epochs inside ``dropout_s`` (start, end); a wheel slip
+    ``(start_s, length_s, extra_mps)`` reading the forward axis fast; ``swapped`` pairs of
+    neighbouring epochs sent out of order."""
+    out = epochs.copy()
+    if slip is not None:
+        start, length, extra = slip
+        out[(out[:, 0] >= start) & (out[:, 0] < start + length), 2] += extra
+    if dropout_s is not None:
+        out = out[(out[:, 0] < dropout_s[0]) | (out[:, 0] >= dropout_s[1])]
+    if swapped:
+        for k in np.random.default_rng([seed, 4]).choice(len(out) - 1, swapped, replace=False):
+            out[[k, k + 1]] = out[[k + 1, k]]
+    return out

@@ -13,6 +13,7 @@ import numpy as np
 from sinsalign.protocol.imu_log import IMU_COLUMNS, TRUTH_COLUMNS, LogHeader, write_header, write_rows
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
 
+from .aiding import odometer_epochs, write_body_velocity_log
 from .imu import simulate
 from .scenarios import Scenario
 
@@ -21,6 +22,7 @@ from .scenarios import Scenario
 class SimulatedFiles:
     imu_csv: Path
     truth_csv: Path
+    odo_csv: Path | None = None
 
 
 def _vector(values: tuple[float, ...] | np.ndarray, scale: float) -> str:
@@ -51,9 +53,14 @@ def simulated_biases(header: LogHeader) -> tuple[np.ndarray, np.ndarray] | None:
 
 def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: str = "imu") -> SimulatedFiles:
     """Simulate ``scenario`` with ``seed`` into OUT_DIR/STEM.csv and OUT_DIR/STEM_truth.csv."""
+    scenario = scenario.for_seed(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    files = SimulatedFiles(out / f"{stem}.csv", out / f"{stem}_truth.csv")
+    files = SimulatedFiles(out / f"{stem}.csv", out / f"{stem}_truth.csv",
+                           None if scenario.odometer is None else out / f"{stem}_odo.csv")
+    if files.odo_csv is not None:
+        epochs = odometer_epochs(scenario, seed)
+        write_body_velocity_log(files.odo_csv, epochs[:, 0], epochs[:, 1:], scenario.odometer.noise_mps or None)
     with open(files.imu_csv, "w", encoding="utf-8") as imu, open(files.truth_csv, "w", encoding="utf-8") as truth:
         write_header(imu, log_keys(scenario, seed), IMU_COLUMNS)
         write_header(truth, {"scenario": scenario.name, "seed": seed}, TRUTH_COLUMNS)

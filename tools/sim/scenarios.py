@@ -7,12 +7,25 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
 from sinsalign.service.align.earth import Site
 from sinsalign.service.align.sensor_model import SensorGrade
 
 from .imu import ImuErrors
 from .motion import AngleProfile, AngularMotion, Sinusoid
+from .vehicle import VehicleMotion
+
+
+@dataclass(frozen=True, slots=True)
+class OdometerSpec:
+    """A simulated odometer / DVL: its rate, white noise per axis, lever arm (body axes, m) and
+    scale-factor error (the same on every axis: 0.01 reads 1 % fast)."""
+
+    rate_hz: float = 100.0
+    noise_mps: float = 0.03
+    lever_b: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    scale: float = 0.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -22,16 +35,30 @@ class Scenario:
     name: str
     description: str
     site: Site
-    motion: AngularMotion
+    motion: AngularMotion | VehicleMotion
     errors: ImuErrors
     grade: SensorGrade
     rate_hz: float
     duration_s: float
     eval_windows_s: tuple[tuple[float, float], ...]
+    odometer: OdometerSpec | None = None
+    random_bias_signs: bool = False
+    """Each seed draws the sign of every axis's bias (a population of IMUs with biases of the stated size)."""
+
+    def for_seed(self, seed: int) -> Scenario:
+        """The scenario as seed ``seed`` runs it (its own bias signs, if drawn)."""
+        if not self.random_bias_signs:
+            return self
+        signs = np.random.default_rng([seed, 5]).choice([-1.0, 1.0], size=(2, 3))
+        e = self.errors
+        return replace(self, random_bias_signs=False, errors=replace(
+            e, gyro_bias_rad_s=tuple(float(v) for v in signs[0] * e.gyro_bias_rad_s),
+            acc_bias_ms2=tuple(float(v) for v in signs[1] * e.acc_bias_ms2)))
 
     def without_errors(self) -> Scenario:
+        odometer = None if self.odometer is None else replace(self.odometer, noise_mps=0.0)
         return replace(self, name=self.name + "-ideal", errors=ImuErrors(),
-                       grade=SensorGrade(1e-12, 1e-12, 1e-12, 1e-12))
+                       grade=SensorGrade(1e-12, 1e-12, 1e-12, 1e-12), odometer=odometer)
 
 
 def _swing(centre_deg: tuple[float, float, float], amp_deg: tuple[float, float, float],
@@ -57,10 +84,36 @@ def grade_of(errors: ImuErrors, rate_hz: float) -> SensorGrade:
                        max(abs(b) for b in errors.acc_bias_ms2), acc_std / dt**0.5)
 
 
-def _scenario(name: str, description: str, site: Site, motion: AngularMotion, errors: ImuErrors, rate_hz: float,
-              duration_s: float, windows: tuple[tuple[float, float], ...]) -> Scenario:
+def _scenario(name: str, description: str, site: Site, motion: AngularMotion | VehicleMotion, errors: ImuErrors,
+              rate_hz: float, duration_s: float, windows: tuple[tuple[float, float], ...],
+              odometer: OdometerSpec | None = None, random_bias_signs: bool = False) -> Scenario:
     return Scenario(name, description, site, motion, errors, grade_of(errors, rate_hz), rate_hz, duration_s,
-                    windows)
+                    windows, odometer, random_bias_signs)
+
+
+SEED003_SITE = Site(45.68 * DEG, 126.63 * DEG, 150.0)
+SEED003_DURATION_S = 600.0
+
+
+def seed003_drive(speed_mps: float) -> VehicleMotion:
+    """Seed 003's land vehicle: heading 30° then turns every two minutes or so, speed changes of ±25 %,
+    road pitch and roll of a degree; 600 s so the Kalman stage can follow the 120-s coarse window."""
+    heading = AngleProfile(30 * DEG, steps=((30.0, 120 * DEG), (70.0, 60 * DEG), (200.0, 150 * DEG),
+                                            (330.0, 30 * DEG), (460.0, -60 * DEG)))
+    speed = AngleProfile(speed_mps, steps=((40.0, 1.25 * speed_mps), (150.0, speed_mps), (260.0, 0.75 * speed_mps),
+                                           (400.0, speed_mps)))
+    return VehicleMotion(SEED003_SITE, SEED003_DURATION_S,
+                         AngularMotion(heading, AngleProfile(0.0, (Sinusoid(0.5 * DEG, 0.1),)),
+                                       AngleProfile(0.0, (Sinusoid(1.0 * DEG, 0.2),))), speed)
+
+
+def _seed003(speed_mps: int) -> Scenario:
+    return _scenario(f"seed003-{speed_mps}", f"seed 003 in-motion with odometer: L=45.68°, 100 Hz, {speed_mps} m/s "
+                     "(±25 %), heading 30° with turns, 600 s; gyro 0.01°/h bias + 0.001°/h per sample, acc 100 µg + "
+                     "10 µg per sample (bias signs drawn per seed and axis); V^b noise 0.03 m/s at 100 Hz",
+                     SEED003_SITE, seed003_drive(float(speed_mps)),
+                     _errors(0.01, 100.0, gyro_noise_deg_h=0.001, acc_noise_ug=10.0), 100.0, SEED003_DURATION_S,
+                     ((120.0, 120.0), (600.0, 600.0)), OdometerSpec(100.0, 0.03), random_bias_signs=True)
 
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
@@ -107,6 +160,7 @@ def _driven(base: Scenario) -> Scenario:
 
 
 SCENARIOS["seed000-swing-driven"] = _driven(SCENARIOS["seed000-swing"])
+SCENARIOS.update({s.name: s for s in (_seed003(20), _seed003(60), _seed003(80))})
 
 
 def get_scenario(name: str) -> Scenario:

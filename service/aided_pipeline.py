@@ -1,0 +1,112 @@
+"""The velocity-aided alignment pipeline (odometer / DVL, seed 003): the same pipeline, other parts.
+
+It is :class:`AlignmentPipeline` with three parts swapped: the observation source (body velocity
+at each observation, a bounded stored window, multistage re-runs every ``relevel_interval_s``),
+the fine stage (the error-state Kalman filter with body-velocity measurements, from the end of the
+window), and no translation check (this base is meant to move). Blocks, records, phases and the
+bit-identity of stream and replay are the base class's.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..protocol.results import ResultRecord
+from .align.coarse import AttitudeSolution, InertialCoarseAlignment
+from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
+from .align.earth import Site
+from .align.kalman import BodyVelocity, ErrorStateFilter
+from .align.solvers import make_solver
+from .align.velocity_aided import MultistageCoarseAlignment, VelocityAidedSource
+from .config import Config, ConfigError
+from .pipeline import AlignmentPipeline, result_record
+
+HANDOVER_VELOCITY_SIGMA_FACTOR = 3.0
+"""The Kalman stage starts with V^n from one odometer reading: its σ is this many times the reading's."""
+
+
+class VelocityAidedPipeline(AlignmentPipeline):
+    """Alignment of a moving base with body velocity V^b (3 aiding values per sample, m/s)."""
+
+    aid_width = 3
+    checks_translation = False
+
+    def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
+                 live: bool = False, odo_std_mps: float | None = None) -> None:
+        self.odo_std_mps = config.aiding.odo_std_mps if odo_std_mps is None else odo_std_mps
+        super().__init__(config, site, rate_hz, datasheet, live)
+
+    def _make_coarse(self) -> InertialCoarseAlignment:
+        a, ad = self.config.alignment, self.config.aiding
+        source = VelocityAidedSource(self.site, ad.window_s, a.obs_interval_s, ad.levels, ad.solver,
+                                     self.grade.acc_bias_ms2)
+        self._next_relevel_s = ad.relevel_interval_s
+        self._window_solved = False
+        return MultistageCoarseAlignment(source, self.grade, make_solver(ad.solver, a.request_rho),
+                                         self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+
+    def _make_fine(self) -> ErrorStateFilter | None:
+        if not self.config.fine.enabled:
+            return None
+        ad = self.config.aiding
+        odometer = BodyVelocity(self.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
+        return ErrorStateFilter(self.grade, [odometer], ad.gate_chi2)
+
+    def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
+                    dt_s: float, aid: np.ndarray | None) -> None:
+        C_b_b0 = dcm_from_quat(q_b_b0)
+        aided = aid is not None and bool(np.isfinite(aid).all())
+        if self.fine is not None and self.fine.active:
+            self.fine.predict(dalpha, dt_s, C_b_b0)
+            if aided:
+                self.fine.update("odo", aid)
+            return
+        source: VelocityAidedSource = self.coarse.source
+        if aided and source.C_b0_n0 is not None:
+            source.advance(elapsed_s, C_b_b0, aid)   # C_n^{n0} with transport rate between re-runs, and after
+        if not self._window_solved and (elapsed_s + 1e-9 >= self._next_relevel_s or source.window_full(elapsed_s)):
+            self.coarse.relevel(elapsed_s)
+            self._next_relevel_s += self.config.aiding.relevel_interval_s
+            self._window_solved = source.window_full(elapsed_s) and source.C_b0_n0 is not None
+        if self.fine is not None and self._window_solved and aided:
+            solution = self.coarse.solution_at(t_end, q_b_b0)
+            C_b_n = dcm_from_quat(solution.q_b_n)
+            self.fine.start(C_b_n, C_b_b0, C_b_n @ aid, source.position, solution.level_sigma_deg * DEG,
+                            solution.heading_sigma_deg * DEG, HANDOVER_VELOCITY_SIGMA_FACTOR * self.odo_std_mps)
+
+    def aiding_counters(self) -> dict[str, int]:
+        """What the estimators made of the aiding: observations without it, multistage pairs left out as
+        outliers, and the Kalman stage's accepted and gated-out odometer readings."""
+        result = self.coarse.source.result
+        counters = {"odo_unaided_observations": self.coarse.unaided_observations,
+                    "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum())}
+        if self.fine is not None:
+            c = self.fine.counters["odo"]
+            counters.update(odo_accepted=c.accepted, odo_rejected=c.rejected)
+        return counters
+
+    def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+                      coarse: InertialCoarseAlignment) -> ResultRecord:
+        if self.fine is None or not self.fine.active:
+            return super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)
+        threshold = self.config.alignment.converged_heading_sigma_deg
+        sigma = self.fine.sigma
+        solution = AttitudeSolution(t_sample, quat_from_dcm(self.fine.attitude(dcm_from_quat(q_b_b0))),
+                                    sigma.heading_deg, sigma.level_deg, coarse.solver.rho, coarse.solver.trace_P,
+                                    coarse.solver.n_obs)
+        return result_record(solution, t_epoch, "aligned" if sigma.heading_deg <= threshold else "fine", threshold)
+
+
+AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline}
+"""Which pipeline the aids given select (``replay --aid``, the daemon's ``aid/<kind>`` inputs)."""
+
+
+def build_pipeline(config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
+                   aids: dict[str, float | None] | None = None, live: bool = False) -> AlignmentPipeline:
+    """The pipeline of the mode the aids select; ``aids`` maps each kind to its noise σ if known (log key)."""
+    kinds = frozenset(aids or {})
+    if kinds not in AIDED_MODES:
+        known = ", ".join(sorted("+".join(sorted(k)) or "(none)" for k in AIDED_MODES))
+        raise ConfigError(f"aids {', '.join(sorted(kinds))}: no aided mode for this combination yet (known: {known})")
+    if not kinds:
+        return AlignmentPipeline(config, site, rate_hz, datasheet, live)
+    return VelocityAidedPipeline(config, site, rate_hz, datasheet, live, (aids or {}).get("odo"))

@@ -1,0 +1,272 @@
+"""Error-state Kalman filter of the moving-base fine stage, with pluggable measurements.
+
+Navigation lives in the inertial chain like the compass stage: the attitude is
+C_b^n(t) = C_{n0}^{n(t)} · C_b0^n0 · C_{b(t)}^{b0}, with C_{b(t)}^{b0} and the specific-force
+integral α from the coarse stage's strapdown integrator (every IMU sample, coning and sculling
+corrected) and the filter owning the constant C_b0^n0, velocity V^n (ENU, m/s), position
+(lat, lon rad, h m) and C_{n(t)}^{n0}, advanced one control step at a time:
+  V^n ← V^n + C_{n0}^{n} C_b0^n0 Δα + (g^n − (2ω_ie^n + ω_en^n) × V^n) Δt,
+  C_n^{n0} ← C_n^{n0} exp([(ω_ie^n + ω_en^n) Δt ×]),  position by its rate.
+Here n0 is the local level frame at the start of the fine stage.
+
+Error states (ENU, ψ-angle form: Ĉ_b^n = (I − [φ×]) C_b^n, V̂ = V + δV):
+φ (3, rad), δV (3, m/s), gyro bias ε (3, rad/s), accelerometer bias ∇ (3, m/s²), then the
+extra states of each measurement (odometer scale factor and lever arm, later GNSS lever arm,
+transfer-alignment mounting). φ̇ = −ω_in^n × φ − C_b^n ε,  δV̇ = f^n × φ + C_b^n ∇ − (2ω_ie + ω_en) × δV.
+The biases and extra states are whole values, not fed back into the IMU data: their mean drives φ
+and δV at each prediction, and φ, δV are injected into the navigation after every prediction
+and update, so the filter's mean of φ and δV stays zero.
+
+A measurement (:class:`Measurement`) gives the innovation y − h(x̂), its Jacobian and noise; the
+filter gates it (χ² of the innovation against its covariance) and counts what it rejects.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+from .compass import rotation_matrix
+from .conventions import DEG, cross, quat_from_dcm, rotvec_from_quat, skew
+from .earth import earth_rate_n, normal_gravity, position_rate, transport_rate_n
+from .sensor_model import AttitudeSigma, SensorGrade
+
+PHI, DV, GYRO_BIAS, ACC_BIAS = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
+CORE_STATES = 12
+BIAS_INSTABILITY_FRACTION = 0.1
+"""Random walk of each bias per hour, as a fraction of its 1-sigma value (slow, honest drift)."""
+
+
+@dataclass(slots=True)
+class Navigation:
+    """What a measurement needs of the current solution.
+
+    C_b_n (3, 3), V_n (3,) m/s ENU, position (3,) lat rad / lon rad / h m, omega_eb_b (3,) rad/s
+    the body rate over the Earth in body axes (for lever arms).
+    """
+
+    C_b_n: np.ndarray
+    V_n: np.ndarray
+    position: np.ndarray
+    omega_eb_b: np.ndarray
+
+
+class Measurement(Protocol):
+    """One kind of aiding measurement of the filter."""
+
+    name: str
+    extra_states: int
+    """How many states of its own the measurement adds (scale factors, lever arms, …)."""
+
+    def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
+        """(initial values (extra_states,), their 1-sigma (extra_states,))."""
+        ...
+
+    def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(innovation y − h(x̂) (m,), ∂h/∂core (m, 12), ∂h/∂extra (m, extra_states), R (m, m))."""
+        ...
+
+
+@dataclass(slots=True)
+class MeasurementCounters:
+    accepted: int = 0
+    rejected: int = 0
+
+
+class ErrorStateFilter:
+    """The fine stage: navigation in the inertial chain plus the error-state covariance.
+
+    grade : datasheet sensor figures (process noise and the biases' prior).
+    measurements : the measurement models this filter takes, by name.
+    gate_chi2 : innovations with a larger normalised square are rejected (counted).
+    """
+
+    def __init__(self, grade: SensorGrade, measurements: list[Measurement], gate_chi2: float = 16.3) -> None:
+        self.grade = grade
+        self.gate_chi2 = gate_chi2
+        self.measurements = {m.name: m for m in measurements}
+        self._extra: dict[str, slice] = {}
+        n = CORE_STATES
+        for m in measurements:
+            self._extra[m.name] = slice(n, n + m.extra_states)
+            n += m.extra_states
+        self.n_states = n
+        self.counters = {m.name: MeasurementCounters() for m in measurements}
+        self.x = np.zeros(n)
+        self.P = np.zeros((n, n))
+        self.C_b0_n0: np.ndarray | None = None
+        self.C_n_n0 = np.eye(3)
+        self.V_n = np.zeros(3)
+        self.position = np.zeros(3)
+        self.omega_eb_b = np.zeros(3)
+        self._C_b_b0 = np.eye(3)
+        self.elapsed_s = 0.0
+
+    @property
+    def active(self) -> bool:
+        return self.C_b0_n0 is not None
+
+    def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, V_n: np.ndarray, position: np.ndarray,
+              tilt_sigma_rad: float, heading_sigma_rad: float, velocity_sigma_mps: float,
+              velocity_from_attitude: bool = True) -> None:
+        """Hand-over from the coarse stage: attitude C_b^n (3, 3) of the body attitude C_b^{b0}, V^n,
+        position, and their 1-sigma errors.
+
+        ``velocity_from_attitude``: V^n is a body velocity turned by this attitude (V̂ = Ĉ_b^n V^b), so
+        its error holds the attitude's, δV = [V×] φ + noise: the covariance says so, or else the
+        first body-velocity reading would "see" the heading error and collapse its σ at once.
+        """
+        self.C_n_n0 = np.eye(3)
+        self.C_b0_n0 = C_b_n @ C_b_b0.T
+        self._C_b_b0 = C_b_b0
+        self.V_n = np.asarray(V_n, dtype=float).copy()
+        self.position = np.asarray(position, dtype=float).copy()
+        g = self.grade
+        sigma = np.concatenate(([tilt_sigma_rad] * 2, [heading_sigma_rad], [velocity_sigma_mps] * 3,
+                                [g.gyro_bias_rad_s] * 3, [g.acc_bias_ms2] * 3))
+        self.x = np.zeros(self.n_states)
+        extra_sigma = []
+        for name, m in self.measurements.items():
+            values, sigmas = m.initial_extra()
+            self.x[self._extra[name]] = values
+            extra_sigma.append(sigmas)
+        self.P = np.diag(np.concatenate([sigma, *extra_sigma]) ** 2)
+        if velocity_from_attitude:
+            coupling = skew(self.V_n)
+            self.P[DV, PHI] = coupling @ self.P[PHI, PHI]
+            self.P[PHI, DV] = self.P[DV, PHI].T
+            self.P[DV, DV] += coupling @ self.P[PHI, PHI] @ coupling.T
+        self.elapsed_s = 0.0
+
+    def _rates(self, V_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        lat, h = self.position[0], self.position[2]
+        return earth_rate_n(lat), transport_rate_n(V_n, lat, h)
+
+    def predict(self, dalpha_b0: np.ndarray, dt_s: float, C_b_b0: np.ndarray) -> None:
+        """One control step: Δα (3,) m/s in b0 axes over ``dt_s``, ending at body attitude C_b^{b0}."""
+        if dt_s <= 0.0:
+            return
+        omega_ie, omega_en = self._rates(self.V_n)
+        omega_in = omega_ie + omega_en
+        C_n_n0_mid = self.C_n_n0 @ rotation_matrix(0.5 * dt_s * omega_in)
+        dv_f_n = C_n_n0_mid.T @ self.C_b0_n0 @ dalpha_b0
+        g_n = np.array([0.0, 0.0, -normal_gravity(self.position[0], self.position[2])])
+        V_new = self.V_n + dv_f_n + (g_n - cross(2.0 * omega_ie + omega_en, self.V_n)) * dt_s
+        self.position = self.position + dt_s * position_rate(0.5 * (self.V_n + V_new), self.position[0],
+                                                             self.position[2])
+        self.V_n = V_new
+        self.C_n_n0 = self.C_n_n0 @ rotation_matrix(dt_s * omega_in)
+        step = rotvec_from_quat(quat_from_dcm(self._C_b_b0.T @ C_b_b0))
+        C_b_n = C_n_n0_mid.T @ self.C_b0_n0 @ C_b_b0
+        self.omega_eb_b = step / dt_s - C_b_n.T @ omega_ie
+        self._C_b_b0 = C_b_b0
+        F = np.zeros((self.n_states, self.n_states))
+        F[PHI, PHI] = -skew(omega_in)
+        F[PHI, GYRO_BIAS] = -C_b_n
+        F[DV, PHI] = skew(dv_f_n / dt_s)
+        F[DV, DV] = -skew(2.0 * omega_ie + omega_en)
+        F[DV, ACC_BIAS] = C_b_n
+        Fdt = F * dt_s
+        Phi = np.eye(self.n_states) + Fdt + 0.5 * Fdt @ Fdt
+        self.x = Phi @ self.x
+        self.P = Phi @ self.P @ Phi.T + self._Q(dt_s)
+        self.elapsed_s += dt_s
+        self._inject()
+
+    def _Q(self, dt_s: float) -> np.ndarray:
+        g = self.grade
+        walk = BIAS_INSTABILITY_FRACTION**2 / 3600.0
+        q = np.zeros(self.n_states)
+        q[PHI] = g.gyro_arw_rad_rts**2
+        q[DV] = g.acc_vrw_ms_rts**2
+        q[GYRO_BIAS] = walk * g.gyro_bias_rad_s**2
+        q[ACC_BIAS] = walk * g.acc_bias_ms2**2
+        return np.diag(q * dt_s)
+
+    def _inject(self) -> None:
+        """Move φ and δV into the navigation (C_b^n ← exp([φ×]) Ĉ_b^n, V ← V̂ − δV); zero them."""
+        phi = self.x[PHI]
+        self.C_b0_n0 = self.C_n_n0 @ rotation_matrix(phi) @ self.C_n_n0.T @ self.C_b0_n0
+        self.V_n = self.V_n - self.x[DV]
+        self.x[PHI] = 0.0
+        self.x[DV] = 0.0
+
+    def navigation(self) -> Navigation:
+        return Navigation(self.C_n_n0.T @ self.C_b0_n0 @ self._C_b_b0, self.V_n, self.position, self.omega_eb_b)
+
+    def update(self, name: str, value: np.ndarray) -> bool:
+        """Fold one measurement of kind ``name``; False (and counted) if the χ² gate rejects it."""
+        m, extra = self.measurements[name], self._extra[name]
+        nu, H_core, H_extra, R = m.model(self.navigation(), self.x[extra], np.asarray(value, dtype=float))
+        H = np.zeros((len(nu), self.n_states))
+        H[:, :CORE_STATES] = H_core
+        H[:, extra] = H_extra
+        PHt = self.P @ H.T
+        S = H @ PHt + R
+        if not float(nu @ np.linalg.solve(S, nu)) <= self.gate_chi2:
+            self.counters[name].rejected += 1
+            return False
+        K = np.linalg.solve(S, PHt.T).T
+        self.x = self.x + K @ nu
+        I_KH = np.eye(self.n_states) - K @ H
+        self.P = I_KH @ self.P @ I_KH.T + K @ R @ K.T
+        self.P = 0.5 * (self.P + self.P.T)
+        self.counters[name].accepted += 1
+        self._inject()
+        return True
+
+    def attitude(self, C_b_b0: np.ndarray) -> np.ndarray:
+        """C_b^n (3, 3) of the body attitude C_b^{b0} (between control steps C_n^{n0} moves < 1e-5 rad)."""
+        return self.C_n_n0.T @ self.C_b0_n0 @ C_b_b0
+
+    @property
+    def sigma(self) -> AttitudeSigma:
+        P = self.P
+        return AttitudeSigma(float(np.sqrt(P[2, 2])) / DEG, float(np.sqrt(0.5 * (P[0, 0] + P[1, 1]))) / DEG)
+
+    def extra(self, name: str) -> np.ndarray:
+        """The current extra states of measurement ``name``."""
+        return self.x[self._extra[name]].copy()
+
+
+class BodyVelocity:
+    """Odometer / DVL measurement: the velocity over ground of a point at lever arm l^b, in body axes.
+
+    h = (1 + k) Ĉ_n^b V^n + ω_eb^b × l^b (scale factor k on the forward reading, lever arm l^b).
+    std_mps : 1-sigma white noise per axis. lever_b : the configured lever arm (m). scale_sigma :
+    prior 1-sigma of k (0: k not estimated). lever_sigma_m : prior of l^b per axis (0: not estimated).
+    """
+
+    name = "odo"
+
+    def __init__(self, std_mps: float, lever_b: np.ndarray | None = None, scale_sigma: float = 0.0,
+                 lever_sigma_m: float = 0.0) -> None:
+        self.std_mps = std_mps
+        self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
+        self.scale = scale_sigma > 0.0
+        self.lever = lever_sigma_m > 0.0
+        self._prior = ([0.0] if self.scale else []) + (list(self.lever_b) if self.lever else [])
+        self._sigma = ([scale_sigma] if self.scale else []) + ([lever_sigma_m] * 3 if self.lever else [])
+        self.extra_states = len(self._prior)
+
+    def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.array(self._prior, dtype=float), np.array(self._sigma, dtype=float)
+
+    def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        k = extra[0] if self.scale else 0.0
+        lever = extra[int(self.scale):] if self.lever else self.lever_b
+        C_n_b = nav.C_b_n.T
+        u = C_n_b @ nav.V_n
+        h = u * (1.0 + k) + cross(nav.omega_eb_b, lever)
+        H_core = np.zeros((3, CORE_STATES))
+        H_core[:, PHI] = (1.0 + k) * C_n_b @ skew(nav.V_n)
+        H_core[:, DV] = -(1.0 + k) * C_n_b
+        H_extra = np.zeros((3, self.extra_states))
+        if self.scale:
+            H_extra[:, 0] = u
+        if self.lever:
+            H_extra[:, int(self.scale):] = skew(nav.omega_eb_b)
+        return value - h, H_core, H_extra, np.eye(3) * self.std_mps**2
