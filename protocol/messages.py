@@ -24,7 +24,7 @@ from .results import ResultRecord
 VERSION = 1
 HEALTH = ("starting", "ok", "degraded", "no_input")
 NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_published", "serial_reconnects",
-                        "unknown_type", "samples_bridged"})
+                        "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames"})
 """Status counters that count work, not faults; every other counter counts a drop or a fault."""
 
 

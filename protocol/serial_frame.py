@@ -5,10 +5,10 @@ Little-endian, self-synchronising::
     offset size  field
     0      2     sync word 0xAA 0x55
     2      1     protocol version (1)
-    3      1     message type (1 = IMU increments; 2 = aiding, reserved; others: counted, skipped)
+    3      1     message type (1 = IMU increments; 2 = aiding epoch; others: counted, passed on)
     4      2     payload length N (u16)
-    6      2     sequence counter (u16, +1 per frame, wraps)
-    8      8     timestamp (u64, ns on the IMU clock, end of the sample interval)
+    6      2     sequence counter (u16, +1 per frame of the same type, wraps; one counter per type)
+    8      8     timestamp (u64, ns on the IMU clock: end of the sample interval / instant of the aiding epoch)
     16     2     header check: the low 16 bits of CRC-32 of bytes 2 .. 15
     18     N     payload
     18+N   4     CRC-32 (zlib / IEEE 802.3) of bytes 2 .. 18+N-1 (everything after the sync word)
@@ -20,17 +20,27 @@ the good frames behind it would be late.
 IMU payload (type 1, N = 28): Δθ x, y, z as i32 in units of 2⁻³¹ rad, Δv x, y, z as i32 in units
 of 2⁻²⁴ m/s (body axes Right-Front-Up), then a u32 status / built-in-test word (0 = healthy).
 
-:class:`FrameDecoder` takes bytes in any pieces, finds frames, and counts what it drops.
+Aiding payload (type 2, N = 1 + 8 n): a u8 kind code (1 odo, 2 gnss, 3 master), then the kind's
+n values as float64, in the column order of its pinned aiding log (``messages.AIDING_FIELDS``):
+odo v_b (3), N = 25; gnss lat_deg, lon_deg, h_m, v_enu (3), N = 49; master q (4), v_enu (3),
+lat_deg, lon_deg, h_m, N = 81. The header timestamp is the instant the values hold for.
+
+:class:`FrameDecoder` takes bytes in any pieces, finds frames, and counts what it drops. Each
+message type carries its own sequence counter (an IMU and its aiding sources number their frames
+independently), so aiding frames interleaved with IMU frames are never IMU sequence gaps.
 """
 from __future__ import annotations
 
+import math
 import struct
 import zlib
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .counters import Counters
+from .messages import AIDING_FIELDS, AidingSample, MessageError
 from .sequence import SequenceTracker
 
 SYNC = b"\xaa\x55"
@@ -45,13 +55,25 @@ DV_LSB_MPS = 2.0**-24
 INT32_MAX = 2**31 - 1
 MAX_PAYLOAD = 1024
 """Longest payload any message type may declare; a longer length field is a corrupt header."""
-PAYLOAD_SIZES = {MSG_IMU: IMU_PAYLOAD.size}
+AIDING_KIND_CODES = {"odo": 1, "gnss": 2, "master": 3}
+"""The aiding payload's first byte: which pinned aiding kind the epoch is."""
+AIDING_KINDS = {code: kind for kind, code in AIDING_KIND_CODES.items()}
+AIDING_VALUES = {kind: sum(AIDING_FIELDS[kind].values()) for kind in AIDING_KIND_CODES}
+"""How many float64 values each aiding kind carries (odo 3, gnss 6, master 10)."""
+AIDING_PAYLOAD_SIZES = {kind: 1 + 8 * n for kind, n in AIDING_VALUES.items()}
+PAYLOAD_SIZES: dict[int, frozenset[int]] = {MSG_IMU: frozenset({IMU_PAYLOAD.size}),
+                                            MSG_AIDING: frozenset(AIDING_PAYLOAD_SIZES.values())}
+"""Payload lengths each known message type allows; any other length is counted as ``bad_length``."""
 
 
 STATUS_GYRO_FAULT = 1 << 0
 STATUS_ACC_FAULT = 1 << 1
 STATUS_SATURATED = 1 << 2
 """Status word bits the IMU sets; any non-zero word marks the sample unhealthy."""
+
+
+class AidingPayloadError(MessageError):
+    """A type-2 payload that is not a valid aiding epoch (unknown kind, wrong length, non-finite value)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -106,6 +128,72 @@ def decode_imu(frame: Frame) -> ImuMessage:
                       tuple(v * DV_LSB_MPS for v in values[3:]), status, saturated)
 
 
+def _flat_aiding_values(kind: str, values: Mapping[str, Sequence[float] | float] | Sequence[float]) -> list[float]:
+    """The kind's values in wire order, from a map of its fields (as in AidingSample) or a flat sequence."""
+    fields = AIDING_FIELDS[kind]
+    if isinstance(values, Mapping):
+        if set(values) != set(fields):
+            raise AidingPayloadError(f"aiding {kind}: expected the fields {', '.join(fields)}, got "
+                                     f"{', '.join(map(str, values)) or 'none'}")
+        flat = []
+        for name, count in fields.items():
+            value = values[name]
+            items = list(np.ravel(np.asarray(value, dtype=float)))
+            if len(items) != count:
+                raise AidingPayloadError(f"aiding {kind}: {name} needs {count} value(s), got {len(items)}")
+            flat += items
+    else:
+        flat = list(np.ravel(np.asarray(values, dtype=float)))
+        if len(flat) != AIDING_VALUES[kind]:
+            raise AidingPayloadError(f"aiding {kind}: expected {AIDING_VALUES[kind]} values, got {len(flat)}")
+    return [float(v) for v in flat]
+
+
+def encode_aiding(seq: int, t: float, kind: str,
+                  values: Mapping[str, Sequence[float] | float] | Sequence[float]) -> bytes:
+    """An aiding frame (type 2) for one epoch of ``kind`` (odo, gnss, master) valid at t (s, IMU clock).
+
+    ``values``: a map of the kind's fields (``AidingSample.values``, scalars or sequences) or the
+    flat values in the pinned log column order. Refuses (AidingPayloadError) an unknown kind, a
+    wrong number of values or a non-finite one: the wire never carries what the decoder rejects.
+    """
+    if kind not in AIDING_KIND_CODES:
+        raise AidingPayloadError(f"unknown aiding kind {kind!r} (known: {', '.join(AIDING_KIND_CODES)})")
+    flat = _flat_aiding_values(kind, values)
+    if not all(math.isfinite(v) for v in flat):
+        raise AidingPayloadError(f"aiding {kind}: values must be finite, got {flat}")
+    payload = struct.pack(f"<B{len(flat)}d", AIDING_KIND_CODES[kind], *flat)
+    return encode_frame(MSG_AIDING, seq, time_ns_of(t), payload)
+
+
+def decode_aiding(frame: Frame) -> AidingSample:
+    """The aiding epoch of a type-2 frame: kind, seq, t (s, IMU clock) and the kind's fields.
+
+    Raises :class:`AidingPayloadError` (a :class:`~.messages.MessageError`) for an empty payload,
+    an unknown kind code, a length that does not fit the kind, or a non-finite value.
+    """
+    payload = frame.payload
+    if not payload:
+        raise AidingPayloadError("aiding payload is empty (expected a kind code and its values)")
+    code = payload[0]
+    kind = AIDING_KINDS.get(code)
+    if kind is None:
+        known = ", ".join(f"{c} {k}" for c, k in AIDING_KINDS.items())
+        raise AidingPayloadError(f"unknown aiding kind code {code} (known: {known})")
+    if len(payload) != AIDING_PAYLOAD_SIZES[kind]:
+        raise AidingPayloadError(f"aiding {kind}: payload of {len(payload)} bytes, expected "
+                                 f"{AIDING_PAYLOAD_SIZES[kind]} (kind code + {AIDING_VALUES[kind]} float64)")
+    flat = struct.unpack_from(f"<{AIDING_VALUES[kind]}d", payload, 1)
+    values: dict[str, tuple[float, ...]] = {}
+    at = 0
+    for name, count in AIDING_FIELDS[kind].items():
+        values[name] = flat[at:at + count]
+        at += count
+        if not all(math.isfinite(v) for v in values[name]):
+            raise AidingPayloadError(f"aiding {kind}: {name} not finite {values[name]}")
+    return AidingSample(kind, frame.seq, frame.time_ns * 1e-9, values)
+
+
 @dataclass(slots=True)
 class DecoderCounters(Counters):
     """What the decoder saw: good frames and every kind of drop."""
@@ -127,10 +215,15 @@ class FrameDecoder:
     Resynchronises on the sync word after garbage; a frame with a bad CRC, version or length is
     dropped by skipping its first sync byte, so a real frame hidden inside it is still found.
     Memory is bounded: the buffer never holds more than one maximal frame plus the last piece.
+
+    Each message type has its own sequence counter: ``sequence`` follows the IMU frames (type 1,
+    counters ``seq_*``), ``aiding_sequence`` the aiding frames (type 2, ``aiding_seq_*``); frames
+    of other types are passed on unchecked (counted as ``unknown_type``).
     """
 
     counters: DecoderCounters = field(default_factory=DecoderCounters)
     sequence: SequenceTracker = field(default_factory=SequenceTracker)
+    aiding_sequence: SequenceTracker = field(default_factory=SequenceTracker)
     _buffer: bytearray = field(default_factory=bytearray)
 
     def feed(self, data: bytes) -> list[Frame]:
@@ -159,7 +252,7 @@ class FrameDecoder:
                 self.counters.bad_version += 1
                 pos += 1
                 continue
-            if length > MAX_PAYLOAD or PAYLOAD_SIZES.get(msg_type, length) != length:
+            if length > MAX_PAYLOAD or length not in PAYLOAD_SIZES.get(msg_type, (length,)):
                 self.counters.bad_length += 1
                 pos += 1
                 continue
@@ -173,9 +266,14 @@ class FrameDecoder:
                 continue
             frame = Frame(msg_type, seq, time_ns, bytes(buf[pos + HEADER.size:end - CRC.size]))
             pos = end
-            if self.sequence.accept(seq):
-                if msg_type not in PAYLOAD_SIZES:
-                    self.counters.unknown_type += 1
+            if msg_type == MSG_IMU:
+                accepted = self.sequence.accept(seq)
+            elif msg_type == MSG_AIDING:
+                accepted = self.aiding_sequence.accept(seq)
+            else:
+                accepted = True
+                self.counters.unknown_type += 1
+            if accepted:
                 self.counters.frames += 1
                 frames.append(frame)
         del buf[:pos]
@@ -183,4 +281,5 @@ class FrameDecoder:
 
     def all_counters(self) -> dict[str, int]:
         """Decoder and sequence counters in one map (the status topic's names)."""
-        return {**self.counters.as_dict(), **self.sequence.counters()}
+        return {**self.counters.as_dict(), **self.sequence.counters(),
+                **self.aiding_sequence.counters("aiding_seq_")}

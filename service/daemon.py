@@ -28,7 +28,7 @@ from ..protocol.imu_log import IMU_COLUMNS, write_header, write_rows
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
 from ..protocol.sequence import SequenceTracker
-from ..protocol.serial_frame import MSG_IMU, FrameDecoder, decode_imu
+from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
 from .align.conventions import DEG
 from .align.earth import Site
 from .config import Config
@@ -39,6 +39,8 @@ from .serial_port import SerialPort
 log = logging.getLogger("sinsalign.daemon")
 NO_INPUT_S = 1.0
 INBOX_LIMIT = 100_000
+AIDING_INBOX_LIMIT = 10_000
+"""Serial aiding epochs held in ``Daemon.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
 MSGPACK = zenoh.Encoding("application/msgpack")
 
 
@@ -47,7 +49,11 @@ class SampleCounters(Counters):
     """Checks on decoded samples, whatever their input."""
 
     samples_in: int = 0
+    samples_in_serial: int = 0      # of samples_in, decoded from serial IMU frames
+    samples_in_zenoh: int = 0       # of samples_in, from the Zenoh IMU topic
     samples_used: int = 0
+    aiding_frames: int = 0          # valid serial aiding epochs (type 2) received
+    bad_aiding: int = 0             # type-2 payloads decode_aiding rejected (unknown kind, length, non-finite)
     bad_messages: int = 0
     inbox_overflow: int = 0
     records_published: int = 0
@@ -80,6 +86,10 @@ class Daemon:
         self._errors_at_status = 0
         self._stop = threading.Event()
         self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival
+        # order, not yet used by the pipeline; a consumer takes them (`inbox, self.aiding_inbox =
+        # self.aiding_inbox, []`). At most AIDING_INBOX_LIMIT are held (the rest: `inbox_overflow`).
+        self.aiding_inbox: list[tuple[str, messages.AidingSample]] = []
         self._recording: TextIO | None = self._open_recording(config.daemon.record_path)
         self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
         self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
@@ -98,27 +108,59 @@ class Daemon:
         self._inbox.put(sample.payload.to_bytes())
 
     def _read_inputs(self) -> list[tuple[float, tuple, tuple, int, bool]]:
-        """Decoded samples (t, Δθ, Δv, status, saturated) from every input, in arrival order."""
+        """Decoded samples (t, Δθ, Δv, status, saturated) from every input, in arrival order.
+
+        The serial port first (its read waits up to 20 ms for data), then the Zenoh IMU inbox,
+        drained without waiting when a serial port paces the loop, or waited on for up to 20 ms
+        when Zenoh is the only input. Serial aiding frames go to :attr:`aiding_inbox`.
+        """
         out = []
         if self.serial is not None:
-            for frame in self.decoder.feed(self.serial.read()):
-                if frame.msg_type == MSG_IMU:
-                    m = decode_imu(frame)
-                    out.append((m.t, m.dtheta, m.dv, m.status, m.saturated))
-        elif self._imu_sub is not None:
+            out += self._read_serial()
+        if self._imu_sub is not None:
             try:
-                first = self._inbox.get(timeout=0.02)
+                first = self._inbox.get_nowait() if self.serial is not None else self._inbox.get(timeout=0.02)
             except queue.Empty:
                 return out
-            for data in self._drain(first):
-                try:
-                    m = messages.decode_imu(data)
-                except messages.MessageError as exc:
-                    self.counters.bad_messages += 1
-                    self._error(f"IMU message dropped: {exc}")
-                    continue
-                if self.zenoh_sequence.accept(m.seq):
-                    out.append((m.t, m.dtheta, m.dv, m.status, False))
+            out += self._decode_zenoh(self._drain(first))
+        return out
+
+    def _read_serial(self) -> list[tuple[float, tuple, tuple, int, bool]]:
+        out = []
+        for frame in self.decoder.feed(self.serial.read()):
+            if frame.msg_type == MSG_IMU:
+                m = decode_imu(frame)
+                out.append((m.t, m.dtheta, m.dv, m.status, m.saturated))
+            elif frame.msg_type == MSG_AIDING:
+                self._take_aiding(frame)
+        self.counters.samples_in_serial += len(out)
+        return out
+
+    def _take_aiding(self, frame: Frame) -> None:
+        try:
+            epoch = decode_aiding(frame)
+        except messages.MessageError as exc:
+            self.counters.bad_aiding += 1
+            self._error(f"serial aiding frame dropped: {exc}")
+            return
+        self.counters.aiding_frames += 1
+        if len(self.aiding_inbox) >= AIDING_INBOX_LIMIT:
+            self.counters.inbox_overflow += 1
+            return
+        self.aiding_inbox.append((epoch.kind, epoch))
+
+    def _decode_zenoh(self, items: list[bytes]) -> list[tuple[float, tuple, tuple, int, bool]]:
+        out = []
+        for data in items:
+            try:
+                m = messages.decode_imu(data)
+            except messages.MessageError as exc:
+                self.counters.bad_messages += 1
+                self._error(f"IMU message dropped: {exc}")
+                continue
+            if self.zenoh_sequence.accept(m.seq):
+                out.append((m.t, m.dtheta, m.dv, m.status, False))
+        self.counters.samples_in_zenoh += len(out)
         return out
 
     def _drain(self, first: bytes) -> list[bytes]:

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import struct
 import zlib
 from pathlib import Path
@@ -16,11 +17,18 @@ from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
 from sinsalign.protocol.sequence import SequenceTracker
 from sinsalign.protocol.serial_frame import (
+    AIDING_KIND_CODES,
     DTHETA_LSB_RAD,
     DV_LSB_MPS,
+    MSG_AIDING,
     MSG_IMU,
+    PAYLOAD_SIZES,
+    AidingPayloadError,
+    Frame,
     FrameDecoder,
+    decode_aiding,
     decode_imu,
+    encode_aiding,
     encode_frame,
     encode_imu,
 )
@@ -28,6 +36,8 @@ from sinsalign.service.config import ConfigError, config_from_mapping
 
 VECTORS = json.loads((Path(__file__).parent / "vectors" / "serial_frames.json").read_text())
 IMU_VECTORS = [v for v in VECTORS if "dtheta_rad" in v]
+AIDING_VECTORS = [v for v in VECTORS if "kind" in v]
+REJECTED_AIDING_VECTORS = [v for v in VECTORS if v.get("msg_type") == MSG_AIDING and "error" in v]
 
 
 def frames(n: int, start_seq: int = 0) -> list[bytes]:
@@ -63,10 +73,10 @@ def test_vectors_encode_to_the_checked_in_bytes_and_decode_back(vector):
 
 
 def test_unknown_message_types_are_counted_and_passed_on():
-    vector = next(v for v in VECTORS if v.get("msg_type") == 2)
+    vector = next(v for v in VECTORS if v.get("msg_type") not in (None, MSG_IMU, MSG_AIDING))
     decoder = FrameDecoder()
     (frame,) = decoder.feed(bytes.fromhex(vector["hex"]))
-    assert frame.msg_type == 2 and decoder.counters.unknown_type == 1
+    assert frame.msg_type == vector["msg_type"] and decoder.counters.unknown_type == 1
 
 
 def test_garbage_between_frames_and_any_split_lose_nothing():
@@ -127,6 +137,134 @@ def test_fuzz_every_frame_survives_garbage_without_sync_bytes(garbage, split):
     out = [f for k in range(0, len(stream), split) for f in decoder.feed(stream[k:k + split])]
     assert [f.seq for f in out] == list(range(10))
     assert decoder.counters.bytes_skipped == sum(len(g) for g in garbage)
+
+
+# ---- aiding message (type 2) ------------------------------------------------------------
+AIDING_EXAMPLES = {
+    "odo": {"v_b": (0.0, 12.5, -0.03)},
+    "gnss": {"lat_deg": (32.0,), "lon_deg": (118.8,), "h_m": (25.5,), "v_enu": (1.25, -0.5, 0.0)},
+    "master": {"q": (0.5, 0.5, -0.5, 0.5), "v_enu": (10.0, 20.0, -0.25), "lat_deg": (-33.865143,),
+               "lon_deg": (151.2099,), "h_m": (58.0,)},
+}
+
+
+def aiding_frame(payload: bytes, seq: int = 0, time_ns: int = 1_000_000_000) -> Frame:
+    return Frame(MSG_AIDING, seq, time_ns, payload)
+
+
+def test_aiding_vector_byte_by_byte():
+    vector = next(v for v in AIDING_VECTORS if v["kind"] == "master")
+    raw = bytes.fromhex(vector["hex"])
+    assert raw[:2] == b"\xaa\x55" and raw[2] == 1 and raw[3] == MSG_AIDING
+    assert struct.unpack_from("<HHQ", raw, 4) == (81, 65535, round(vector["t"] * 1e9))
+    assert struct.unpack_from("<H", raw, 16)[0] == zlib.crc32(raw[2:16]) & 0xFFFF
+    assert raw[18] == 3                      # kind code: master
+    v = vector["values"]
+    assert struct.unpack_from("<10d", raw, 19) == (*v["q"], *v["v_enu"], *v["lat_deg"], *v["lon_deg"], *v["h_m"])
+    assert struct.unpack_from("<I", raw, 18 + 81)[0] == zlib.crc32(raw[2:18 + 81])
+    assert len(raw) == 18 + 81 + 4
+
+
+@pytest.mark.parametrize("vector", AIDING_VECTORS, ids=lambda v: v["name"])
+def test_aiding_vectors_encode_to_the_checked_in_bytes_and_decode_back(vector):
+    raw = encode_aiding(vector["seq"], vector["t"], vector["kind"], vector["values"])
+    assert raw.hex() == vector["hex"]
+    decoder = FrameDecoder()
+    (frame,) = decoder.feed(raw)
+    epoch = decode_aiding(frame)
+    assert (epoch.kind, epoch.seq, epoch.t) == (vector["kind"], vector["seq"], pytest.approx(vector["t"], abs=1e-9))
+    assert epoch.values == {k: tuple(v) for k, v in vector["values"].items()}     # float64: exact
+    assert decoder.counters.as_dict() == {"frames": 1, "bytes_skipped": 0, "bad_header": 0, "bad_crc": 0,
+                                          "bad_length": 0, "bad_version": 0, "unknown_type": 0}
+
+
+@pytest.mark.parametrize("vector", REJECTED_AIDING_VECTORS, ids=lambda v: v["name"])
+def test_rejected_aiding_vectors_pass_the_frame_decoder_and_fail_decode_aiding(vector):
+    (frame,) = FrameDecoder().feed(bytes.fromhex(vector["hex"]))
+    assert frame.payload.hex() == vector["payload_hex"]
+    with pytest.raises(AidingPayloadError, match=vector["error"]):
+        decode_aiding(frame)
+
+
+@pytest.mark.parametrize("kind", list(AIDING_EXAMPLES))
+def test_aiding_round_trip_for_each_kind_from_fields_or_flat_values(kind):
+    values = AIDING_EXAMPLES[kind]
+    flat = [x for field in values.values() for x in field]
+    raw = encode_aiding(70000, 123.456789, kind, values)     # the counter wraps to 16 bits
+    assert raw == encode_aiding(70000, 123.456789, kind, flat)
+    assert len(raw) == 18 + 1 + 8 * len(flat) + 4 and raw[18] == AIDING_KIND_CODES[kind]
+    (frame,) = FrameDecoder().feed(raw)
+    assert decode_aiding(frame) == messages.AidingSample(kind, 70000 & 0xFFFF, 123456789000 * 1e-9, values)
+    # the same fields as the Zenoh aiding message of that kind
+    assert list(decode_aiding(frame).values) == list(messages.AIDING_FIELDS[kind])
+
+
+def test_frame_decoder_accepts_exactly_the_aiding_lengths():
+    assert PAYLOAD_SIZES[MSG_AIDING] == {25, 49, 81}
+    for length in (0, 1, 24, 26, 48, 50, 80, 82, 28):
+        decoder = FrameDecoder()
+        assert decoder.feed(encode_frame(MSG_AIDING, 0, 0, bytes(length))) == []
+        assert decoder.counters.bad_length == 1
+
+
+@pytest.mark.parametrize(("payload", "reason"), [
+    (b"", "aiding payload is empty"),
+    (bytes([0]) + bytes(24), "unknown aiding kind code 0"),
+    (bytes([4]) + bytes(80), "unknown aiding kind code 4 \\(known: 1 odo, 2 gnss, 3 master\\)"),
+    (bytes([255]) + bytes(48), "unknown aiding kind code 255"),
+    (bytes([1]) + bytes(80), r"aiding odo: payload of 81 bytes, expected 25"),
+    (bytes([3]) + bytes(48), r"aiding master: payload of 49 bytes, expected 81"),
+    (bytes([2]) + bytes(24), r"aiding gnss: payload of 25 bytes, expected 49"),
+    (struct.pack("<B3d", 1, 0.0, math.inf, 0.0), "aiding odo: v_b not finite"),
+    (struct.pack("<B6d", 2, math.nan, 0, 0, 0, 0, 0), "aiding gnss: lat_deg not finite"),
+    (struct.pack("<B10d", 3, 1, 0, 0, 0, 0, 0, 0, 0, 0, -math.inf), "aiding master: h_m not finite"),
+])
+def test_bad_aiding_payloads_are_rejected_with_a_clear_reason(payload, reason):
+    with pytest.raises(AidingPayloadError, match=reason) as info:
+        decode_aiding(aiding_frame(payload))
+    assert isinstance(info.value, messages.MessageError) and isinstance(info.value, ValueError)
+
+
+@pytest.mark.parametrize(("kind", "values", "reason"), [
+    ("lidar", [0.0, 0.0, 0.0], "unknown aiding kind 'lidar'"),
+    ("odo", [0.0, 1.0], "aiding odo: expected 3 values, got 2"),
+    ("odo", {"v_b": (0.0, 1.0)}, "aiding odo: v_b needs 3 value"),
+    ("gnss", {"lat_deg": 1.0, "lon_deg": 2.0, "h_m": 3.0}, "aiding gnss: expected the fields"),
+    ("odo", [0.0, float("nan"), 0.0], "aiding odo: values must be finite"),
+])
+def test_encode_aiding_refuses_what_the_decoder_would_reject(kind, values, reason):
+    with pytest.raises(AidingPayloadError, match=reason):
+        encode_aiding(0, 1.0, kind, values)
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.one_of(st.binary(max_size=120),
+                 st.builds(lambda code, body: bytes([code]) + body, st.sampled_from([0, 1, 2, 3, 4, 255]),
+                           st.sampled_from([24, 48, 80]).flatmap(lambda n: st.binary(min_size=n, max_size=n)))),
+       st.integers(0, 0xFFFF), st.integers(0, 2**64 - 1))
+def test_fuzz_decode_aiding_raises_only_its_documented_error(payload, seq, time_ns):
+    try:
+        epoch = decode_aiding(Frame(MSG_AIDING, seq, time_ns, payload))
+    except AidingPayloadError:
+        return
+    assert epoch.kind in AIDING_KIND_CODES and len(payload) == 1 + 8 * sum(messages.AIDING_FIELDS[epoch.kind].values())
+    assert all(math.isfinite(x) for field in epoch.values.values() for x in field)
+
+
+def test_interleaved_aiding_frames_have_their_own_sequence_and_are_no_imu_gaps():
+    imu = frames(6)
+    aid = [encode_aiding(500 + k, 0.005 * k + 0.001, "odo", [0.0, 1.0 * k, 0.0]) for k in range(4)]
+    stream = imu[0] + aid[0] + imu[1] + aid[1] + aid[1] + imu[2] + imu[3] + aid[3] + imu[4] + imu[5]
+    decoder = FrameDecoder()
+    out = decoder.feed(stream)
+    assert [(f.msg_type, f.seq) for f in out if f.msg_type == MSG_IMU] == [(MSG_IMU, k) for k in range(6)]
+    assert [f.seq for f in out if f.msg_type == MSG_AIDING] == [500, 501, 503]
+    counters = decoder.all_counters()
+    assert {k: v for k, v in counters.items() if k.startswith("seq_")} == {
+        "seq_gaps": 0, "seq_repeats": 0, "seq_backwards": 0, "seq_resets": 0}
+    assert {k: v for k, v in counters.items() if k.startswith("aiding_seq_")} == {
+        "aiding_seq_gaps": 1, "aiding_seq_repeats": 1, "aiding_seq_backwards": 0, "aiding_seq_resets": 0}
+    assert counters["frames"] == 9 and counters["unknown_type"] == 0
 
 
 def test_frames_are_self_delimiting_for_other_types():

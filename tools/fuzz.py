@@ -1,17 +1,30 @@
 """Long random-input runs of the readers (a benchmark-style command; the suite runs hypothesis).
 
-``fuzz_serial`` feeds the serial decoder random pieces: pure noise, valid frames with random bit
-flips, truncations and splices, and noise with sync words planted in it. Any exception escaping
-the decoder or the IMU payload decoder is a failure; everything else must be counted.
+``fuzz_serial`` feeds the serial decoder random pieces: pure noise, valid frames (IMU and aiding)
+with random bit flips, truncations and splices, and noise with sync words planted in it. Any
+exception escaping the decoder or the IMU payload decoder is a failure, as is one from the aiding
+payload decoder other than its documented ``AidingPayloadError``; everything else must be counted.
 """
 from __future__ import annotations
 
+import contextlib
 import time
 from dataclasses import dataclass
 
 import numpy as np
 from sinsalign.protocol import messages
-from sinsalign.protocol.serial_frame import MSG_IMU, SYNC, FrameDecoder, decode_imu, encode_imu
+from sinsalign.protocol.serial_frame import (
+    AIDING_VALUES,
+    MSG_AIDING,
+    MSG_IMU,
+    SYNC,
+    AidingPayloadError,
+    FrameDecoder,
+    decode_aiding,
+    decode_imu,
+    encode_aiding,
+    encode_imu,
+)
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,6 +63,8 @@ def _pieces(rng: np.random.Generator, valid: list[bytes], n: int):
 def fuzz_serial(inputs: int = 1_000_000, seed: int = 0) -> FuzzReport:
     rng = np.random.default_rng(seed)
     valid = [encode_imu(k, 0.005 * (k + 1), rng.normal(0, 1e-3, 3), rng.normal(0, 0.1, 3)) for k in range(256)]
+    valid += [encode_aiding(k, 0.005 * (k + 1), kind, rng.normal(0, 10, n))
+              for k in range(32) for kind, n in AIDING_VALUES.items()]
     decoder = FrameDecoder()
     escaped = frames = fed = 0
     first = None
@@ -61,6 +76,9 @@ def fuzz_serial(inputs: int = 1_000_000, seed: int = 0) -> FuzzReport:
                 frames += 1
                 if frame.msg_type == MSG_IMU:
                     decode_imu(frame)
+                elif frame.msg_type == MSG_AIDING:
+                    with contextlib.suppress(AidingPayloadError):   # the documented rejection (bad_aiding)
+                        decode_aiding(frame)
         except Exception as exc:   # the point of the run: nothing may escape
             escaped += 1
             first = first or f"{type(exc).__name__}: {exc} on {piece.hex()}"

@@ -1,0 +1,124 @@
+"""The daemon's inputs through real parts: a pty with pyserial and Zenoh sessions on loopback.
+
+GIVEN a daemon with both a serial port and the Zenoh IMU topic configured, WHEN samples arrive on
+either, THEN both reach the pipeline (per-input counters, records equal to the offline replay).
+GIVEN aiding frames (type 2) interleaved with the IMU frames on the serial link, THEN they are
+decoded into the daemon's aiding inbox and counted, a bad one is counted and dropped, and none
+of them counts as an IMU sequence gap.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+import zenoh
+from daemon_harness import RunningDaemon
+from sinsalign.protocol import messages
+from sinsalign.protocol.serial_frame import MSG_AIDING, encode_aiding, encode_frame, encode_imu
+from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
+from test_daemon_e2e import assert_same_as_replay, samples
+
+SECONDS = 20.0
+HALF = 2000   # samples: the first 10 s over serial, the rest over Zenoh
+
+
+@pytest.fixture
+def pty_pair():
+    pair = PtyPair()
+    yield pair
+    pair.close()
+
+
+def imu_data(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    chunks = samples(seconds)
+    return tuple(np.concatenate([getattr(c, name) for c in chunks]) for name in ("t", "dtheta", "dv"))
+
+
+@pytest.fixture
+def running(tmp_path, pty_pair):
+    """Start a daemon on the pty with ``running(**sections)``; stopped after the test, even a failed one."""
+    started: list[RunningDaemon] = []
+
+    def start(**sections) -> RunningDaemon:
+        started.append(RunningDaemon(tmp_path, pty_pair.port_name, **sections))
+        return started[-1]
+
+    yield start
+    for run in started:
+        if run.thread.is_alive():
+            run.stop()
+
+
+def wait_until(condition, timeout_s: float = 10.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.02)
+
+
+def test_serial_and_zenoh_inputs_together_both_reach_the_pipeline(tmp_path, pty_pair, running):
+    run = running(zenoh={"imu_input": True})
+    config, daemon, subscriber = run.config, run.daemon, run.subscriber
+    t, dtheta, dv = imu_data(SECONDS)
+    n = len(t)
+    # the first half as serial frames into the pty ...
+    FramePlayer(pty_pair.master_fd, speed=50.0).play(t[:HALF], dtheta[:HALF], dv[:HALF])
+    wait_until(lambda: daemon.counters.samples_in_serial == HALF)
+    # ... then the rest as msgpack on the Zenoh IMU key, while the serial port stays open and idle
+    publisher = subscriber.session.declare_publisher(daemon.keys.imu, congestion_control=zenoh.CongestionControl.BLOCK)
+    for seq, k in enumerate(range(HALF, n)):
+        sample = messages.ImuSample(seq, float(t[k]), tuple(dtheta[k]), tuple(dv[k]), 0)
+        publisher.put(messages.pack(messages.imu_message(sample)))
+    subscriber.wait_for(int(SECONDS / config.output.period_s), timeout_s=15)
+    time.sleep(0.3)   # a status period
+    run.stop()
+    counters = subscriber.status[-1]["counters"]
+    assert (counters["samples_in_serial"], counters["samples_in_zenoh"]) == (HALF, n - HALF)
+    assert counters["samples_in"] == counters["samples_used"] == n
+    assert messages.fault_count(counters) == 0, {k: v for k, v in counters.items() if v}
+    assert len(subscriber.attitude) == int(SECONDS / config.output.period_s)
+    assert_same_as_replay(subscriber.attitude, tmp_path / "recorded.csv", tmp_path, config)
+
+
+AIDING_EPOCHS = {
+    "odo": [0.0, 0.01, 0.0],
+    "gnss": [32.0, 118.8, 25.5, 0.0, 0.0, 0.0],
+    "master": [1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 32.0, 118.8, 25.5],
+}
+
+
+def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(pty_pair, running):
+    run = running()
+    daemon, subscriber = run.daemon, run.subscriber
+    t, dtheta, dv = imu_data(5.0)
+    n = len(t)
+    kinds = list(AIDING_EPOCHS)
+    stream, expected, aid_seq = [], [], 100
+    for k in range(n):
+        stream.append(encode_imu(k, float(t[k]), dtheta[k], dv[k]))
+        if k % 20 == 10:   # an aiding epoch every 0.1 s, between two IMU samples, each type its own counter
+            kind = kinds[len(expected) % 3]
+            t_aid = float(t[k]) + 0.0025
+            stream.append(encode_aiding(aid_seq, t_aid, kind, AIDING_EPOCHS[kind]))
+            expected.append((kind, aid_seq, t_aid))
+            aid_seq += 1
+        if k == n // 2:    # a well-formed frame whose aiding payload is not: kind code 7
+            stream.append(encode_frame(MSG_AIDING, aid_seq, 0, bytes([7]) + bytes(24)))
+            aid_seq += 1
+    data = b"".join(stream)
+    for at in range(0, len(data), 4096):
+        write_all(pty_pair.master_fd, data[at:at + 4096])
+    wait_until(lambda: daemon.counters.samples_used == n)
+    time.sleep(0.3)   # a status period
+    run.stop()
+    counters = subscriber.status[-1]["counters"]
+    assert counters["samples_used"] == counters["samples_in_serial"] == n
+    assert counters["aiding_frames"] == len(expected) == 50 and counters["bad_aiding"] == 1
+    assert counters["frames"] == n + len(expected) + 1
+    assert {k: v for k, v in counters.items() if v and k not in messages.NOT_FAULTS} == {"bad_aiding": 1}
+    assert [(kind, e.seq, e.t) for kind, e in daemon.aiding_inbox] == [
+        (kind, seq, pytest.approx(t, abs=1e-9)) for kind, seq, t in expected]
+    assert all(kind == e.kind and list(e.values) == list(messages.AIDING_FIELDS[kind])
+               for kind, e in daemon.aiding_inbox)
+    assert [x for field in daemon.aiding_inbox[2][1].values.values() for x in field] == AIDING_EPOCHS["master"]
+    assert "unknown aiding kind code 7" in subscriber.status[-1]["last_error"]
