@@ -24,7 +24,9 @@ from .results import ResultRecord
 VERSION = 1
 HEALTH = ("starting", "ok", "degraded", "no_input")
 NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_published", "serial_reconnects",
-                        "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames"})
+                        "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames",
+                        "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
+                        "gnss_accepted", "master_epochs", "master_unaided_queries", "master_accepted"})
 """Status counters that count work, not faults; every other counter counts a drop or a fault."""
 
 
@@ -99,6 +101,9 @@ def decode_imu(data: bytes) -> ImuSample:
 AIDING_FIELDS = {"odo": {"v_b": 3}, "gnss": {"lat_deg": 1, "lon_deg": 1, "h_m": 1, "v_enu": 3},
                  "master": {"q": 4, "v_enu": 3, "lat_deg": 1, "lon_deg": 1, "h_m": 1}}
 """Fields of each aiding kind and how many numbers each holds (1 = a scalar)."""
+AIDING_FIELDS_FLAT = {kind: [f"{name}{i}" if n > 1 else name for name, n in fields.items() for i in range(n)]
+                      for kind, fields in AIDING_FIELDS.items()}
+"""The numbers of each kind one by one, in the pinned log's column order (after t)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -107,6 +112,11 @@ class AidingSample:
     seq: int
     t: float
     values: dict[str, tuple[float, ...]]
+
+
+def aiding_row(sample: AidingSample) -> list[float]:
+    """[t, values…] in the kind's pinned log column order (what an aiding track takes)."""
+    return [sample.t, *(v for name in AIDING_FIELDS[sample.kind] for v in sample.values[name])]
 
 
 def aiding_message(sample: AidingSample) -> dict[str, Any]:

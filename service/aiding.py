@@ -19,6 +19,9 @@ import numpy as np
 
 from ..protocol.counters import Counters
 
+TIME_TOLERANCE_S = 1e-6
+"""Time stamps travel as integer ns or decimal text: an IMU sample this close to an epoch is at it."""
+
 
 @dataclass(slots=True)
 class AidingCounters(Counters):
@@ -84,7 +87,7 @@ class AidingTrack:
         if self._n >= 2:
             k = np.clip(np.searchsorted(held[:, 0], t, side="right"), 1, self._n - 1)
             t0, t1 = held[k - 1, 0], held[k, 0]
-            ok = (t >= t0) & (t <= t1) & (t1 - t0 <= self.max_gap_s)
+            ok = (t >= t0 - TIME_TOLERANCE_S) & (t <= t1 + TIME_TOLERANCE_S) & (t1 - t0 <= self.max_gap_s)
             f = ((t - t0) / (t1 - t0))[ok, None]
             out[ok] = held[k[ok] - 1, 1:] + f * (held[k[ok], 1:] - held[k[ok] - 1, 1:])
         self.counters.unaided_queries += int(np.isnan(out[:, 0]).sum())
@@ -126,3 +129,40 @@ class AidingFeed:
         values = self.track.values_at(t)
         self.track.release(float(t[-1]))
         return values
+
+
+class AidingWait:
+    """IMU samples held until an aiding stream has caught up with them (the daemon's side of the track).
+
+    Aiding arrives late (its own latency, transport); a sample leaves once the track holds an epoch
+    at or after it, or once it is ``max_wait_s`` older than the newest sample (data clock, so the
+    outcome does not depend on the machine's speed), then unaided where the track has nothing.
+    """
+
+    def __init__(self, track: AidingTrack, max_wait_s: float) -> None:
+        self.track = track
+        self.max_wait_s = max_wait_s
+        self._rows = np.empty((0, 7))
+
+    def push(self, rows: np.ndarray) -> None:
+        """IMU samples (N, 7): t, Δθ (3), Δv (3), in time order."""
+        self._rows = np.concatenate((self._rows, rows))
+
+    def release(self, everything: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """(samples (M, 7), aiding values (M, width)) of the samples whose wait is over (all if ``everything``)."""
+        t = self._rows[:, 0]
+        if len(t) == 0:
+            return self._rows, np.empty((0, self.track.width))
+        latest = self.track.latest_time
+        until = np.inf if everything else max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
+                                              t[-1] - self.max_wait_s)
+        n = int(np.searchsorted(t, until, side="right"))
+        out, self._rows = self._rows[:n], self._rows[n:]
+        values = self.track.values_at(out[:, 0])
+        if n:
+            self.track.release(float(out[-1, 0]))
+        return out, values
+
+    @property
+    def held(self) -> int:
+        return len(self._rows)

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from ..protocol.keys import UnitKeys
+from ..protocol.messages import AIDING_FIELDS as AIDING_KINDS
 from .align.compass import GainSchedule
 from .align.solvers import SOLVERS
 
@@ -72,6 +73,9 @@ class AidingConfig:
     (0: not estimated). Coarse: the multistage window (s, bounded store of window / obs interval
     rows), its levels, how often they are re-run, the solver of each level. ``max_gap_s``: epochs
     further apart are not interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
+    Daemon: ``inputs`` lists the aiding kinds it subscribes to (``…/aid/<kind>`` on Zenoh, serial
+    aiding frames) and selects the aided mode; IMU samples wait up to ``max_wait_s`` (data time)
+    for their aiding to arrive.
     """
 
     odo_latency_s: float = 0.0
@@ -85,6 +89,8 @@ class AidingConfig:
     solver: str = "centred"
     max_gap_s: float = 0.5
     gate_chi2: float = 16.3
+    inputs: tuple[str, ...] = ()
+    max_wait_s: float = 0.5
 
 
 HANDOVERS = ("sigma", "time")
@@ -190,6 +196,9 @@ def _check(config: Config) -> Config:
     ad = config.aiding
     if ad.solver not in SOLVERS:
         raise ConfigError(f"aiding.solver: {ad.solver!r} is not one of {', '.join(SOLVERS)}")
+    unknown = [k for k in ad.inputs if k not in AIDING_KINDS]
+    if unknown or len(set(ad.inputs)) != len(ad.inputs):
+        raise ConfigError(f"aiding.inputs: {list(ad.inputs)} must name distinct kinds among {', '.join(AIDING_KINDS)}")
     if len(ad.odo_lever_m) != 3:
         raise ConfigError(f"aiding.odo_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.odo_lever_m)}")
     if config.disturbance.action not in DISTURBANCE_ACTIONS:
@@ -232,6 +241,7 @@ def _check(config: Config) -> Config:
         ("aiding.relevel_interval_s", ad.relevel_interval_s > 0.0, "must be > 0"),
         ("aiding.max_gap_s", ad.max_gap_s > 0.0, "must be > 0"),
         ("aiding.gate_chi2", ad.gate_chi2 > 0.0, "must be > 0"),
+        ("aiding.max_wait_s", 0.0 <= ad.max_wait_s <= 10.0, "must be in [0, 10]"),
         ("daemon.max_bridge_samples", 0 <= config.daemon.max_bridge_samples <= 1000, "must be in 0..1000"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
     for key, ok, rule in checks:

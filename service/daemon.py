@@ -29,6 +29,8 @@ from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
 from ..protocol.sequence import SequenceTracker
 from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
+from .aided_pipeline import build_pipeline
+from .aiding import AidingTrack, AidingWait
 from .align.conventions import DEG
 from .align.earth import Site
 from .config import Config
@@ -55,6 +57,7 @@ class SampleCounters(Counters):
     aiding_frames: int = 0          # valid serial aiding epochs (type 2) received
     bad_aiding: int = 0             # type-2 payloads decode_aiding rejected (unknown kind, length, non-finite)
     bad_messages: int = 0
+    aiding_unused: int = 0          # aiding epochs of a kind the configuration does not use
     inbox_overflow: int = 0
     records_published: int = 0
     internal_errors: int = 0
@@ -71,7 +74,12 @@ class Daemon:
         self.keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
         s = config.site
         self.site = Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m)
-        self.pipeline = AlignmentPipeline(config, self.site, config.imu.rate_hz, live=True)
+        self.aid_kinds = config.aiding.inputs
+        self.pipeline = self._new_pipeline()
+        ad = config.aiding
+        self.tracks = {kind: AidingTrack(len(messages.AIDING_FIELDS_FLAT[kind]), getattr(ad, f"{kind}_latency_s", 0.0),
+                                         ad.max_gap_s) for kind in self.aid_kinds}
+        self._wait = AidingWait(self.tracks["odo"], ad.max_wait_s) if "odo" in self.tracks else None
         self.gate = SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples)
         self.decoder = FrameDecoder()
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
@@ -97,9 +105,43 @@ class Daemon:
         self._queryable = session.declare_queryable(self.keys.state, self._on_query)
         self._imu_sub = (session.declare_subscriber(self.keys.imu, self._on_imu)
                          if config.zenoh.imu_input else None)
+        self._aid_inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
+        self._aid_subs = [session.declare_subscriber(self.keys.aid(kind), self._aid_callback(kind))
+                          for kind in self.aid_kinds]
         self._next_status = time.monotonic()
 
+    def _new_pipeline(self) -> AlignmentPipeline:
+        return build_pipeline(self.config, self.site, self.config.imu.rate_hz,
+                              aids={kind: None for kind in self.aid_kinds}, live=True)
+
     # ---- inputs -------------------------------------------------------------------------
+    def _aid_callback(self, kind: str):
+        def on_aid(sample: zenoh.Sample) -> None:   # a Zenoh thread: hand the bytes over
+            if self._aid_inbox.qsize() >= INBOX_LIMIT:
+                self.counters.inbox_overflow += 1
+                return
+            self._aid_inbox.put((kind, sample.payload.to_bytes()))
+        return on_aid
+
+    def _take_aiding_epochs(self) -> None:
+        """Every aiding epoch that arrived (Zenoh and serial) into its kind's track; others counted."""
+        epochs, self.aiding_inbox = self.aiding_inbox, []
+        while True:
+            try:
+                kind, data = self._aid_inbox.get_nowait()
+            except queue.Empty:
+                break
+            try:
+                epochs.append((kind, messages.decode_aiding(kind, data)))
+            except messages.MessageError as exc:
+                self.counters.bad_aiding += 1
+                self._error(f"aiding message on {self.keys.aid(kind)} dropped: {exc}")
+        for kind, epoch in epochs:
+            if kind in self.tracks:
+                self.tracks[kind].push(np.array([messages.aiding_row(epoch)]))
+            else:
+                self.counters.aiding_unused += 1
+
     def _on_imu(self, sample: zenoh.Sample) -> None:
         # a Zenoh thread: only hand the bytes over; decoding happens in the loop
         if self._inbox.qsize() >= INBOX_LIMIT:
@@ -172,9 +214,21 @@ class Daemon:
                 return items
 
     # ---- loop ---------------------------------------------------------------------------
+    def _feed(self, rows: np.ndarray | None, everything: bool = False) -> list[ResultRecord]:
+        """Samples (N, 7) into the pipeline; in the aided mode they wait for their aiding first."""
+        if self._wait is None:
+            return [] if rows is None else self.pipeline.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+        if rows is not None:
+            self._wait.push(rows)
+        ready, aid = self._wait.release(everything)
+        if len(ready) == 0:
+            return []
+        return self.pipeline.process(ready[:, 0], ready[:, 1:4], ready[:, 4:7], aid)
+
     def step(self) -> list[ResultRecord]:
         """One pass of the loop: read, check, align, publish; returns the records published."""
         samples = self._read_inputs()
+        self._take_aiding_epochs()
         records: list[ResultRecord] = []
         if samples:
             self.counters.samples_in += len(samples)
@@ -182,21 +236,24 @@ class Daemon:
             for segment in self.gate.admit(samples):
                 if segment.restart:
                     self._error(segment.reason)
+                    records += self._feed(None, everything=True)   # what waited for aiding, to the old pipeline
                     self._disturbances_before += self.pipeline.disturbances
-                    self.pipeline = AlignmentPipeline(self.config, self.site, self.config.imu.rate_hz, live=True)
-                t, dtheta, dv = segment.rows[:, 0], segment.rows[:, 1:4], segment.rows[:, 4:7]
+                    self.pipeline = self._new_pipeline()
+                t = segment.rows[:, 0]
                 self.counters.samples_used += len(t)
                 self.t_last = float(t[-1])
-                self._record_raw(t, dtheta, dv)
-                records += self.pipeline.process(t, dtheta, dv)
+                self._record_raw(t, segment.rows[:, 1:4], segment.rows[:, 4:7])
+                records += self._feed(segment.rows)
             for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance)):
                 if text and text != self._reported[source]:   # report each new event once
                     self._reported[source] = text
                     self._error(text)
-            for record in records:
-                self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
-                self.last_record = record
-            self.counters.records_published += len(records)
+        elif self._wait is not None and self._wait.held:
+            records += self._feed(None)   # aiding that came after the last samples lets them go
+        for record in records:
+            self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
+            self.last_record = record
+        self.counters.records_published += len(records)
         now = time.monotonic()
         if now >= self._next_status:
             self._next_status = now + self.config.daemon.status_period_s
@@ -231,7 +288,8 @@ class Daemon:
 
     def close(self) -> None:
         self._status_pub.put(messages.pack(self.status()))
-        for entity in (self._imu_sub, self._queryable, self._token, self._status_pub, self._attitude_pub):
+        for entity in (self._imu_sub, *self._aid_subs, self._queryable, self._token, self._status_pub,
+                       self._attitude_pub):
             if entity is not None:
                 entity.undeclare()
         if self.serial is not None:
@@ -246,7 +304,9 @@ class Daemon:
     def all_counters(self) -> dict[str, int]:
         counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
                     "disturbances": self._disturbances_before + self.pipeline.disturbances,
-                    **self.zenoh_sequence.counters("zenoh_seq_")}
+                    **self.zenoh_sequence.counters("zenoh_seq_"), **self.pipeline.aiding_counters()}
+        for kind, track in self.tracks.items():
+            counters |= track.counters.as_dict(f"{kind}_")
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects}
         return counters

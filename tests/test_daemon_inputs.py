@@ -3,8 +3,9 @@
 GIVEN a daemon with both a serial port and the Zenoh IMU topic configured, WHEN samples arrive on
 either, THEN both reach the pipeline (per-input counters, records equal to the offline replay).
 GIVEN aiding frames (type 2) interleaved with the IMU frames on the serial link, THEN they are
-decoded into the daemon's aiding inbox and counted, a bad one is counted and dropped, and none
-of them counts as an IMU sequence gap.
+decoded and counted, the configured kind's go to its track (the others counted as unused), a bad
+one is counted and dropped, and none of them counts as an IMU sequence gap. GIVEN a moving vehicle
+with its odometer on Zenoh, late, THEN the samples wait for it and the records equal the replay.
 """
 from __future__ import annotations
 
@@ -88,7 +89,7 @@ AIDING_EPOCHS = {
 
 
 def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(pty_pair, running):
-    run = running()
+    run = running(aiding={"inputs": ["odo"]})
     daemon, subscriber = run.daemon, run.subscriber
     t, dtheta, dv = imu_data(5.0)
     n = len(t)
@@ -115,10 +116,75 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
     assert counters["samples_used"] == counters["samples_in_serial"] == n
     assert counters["aiding_frames"] == len(expected) == 50 and counters["bad_aiding"] == 1
     assert counters["frames"] == n + len(expected) + 1
-    assert {k: v for k, v in counters.items() if v and k not in messages.NOT_FAULTS} == {"bad_aiding": 1}
-    assert [(kind, e.seq, e.t) for kind, e in daemon.aiding_inbox] == [
-        (kind, seq, pytest.approx(t, abs=1e-9)) for kind, seq, t in expected]
-    assert all(kind == e.kind and list(e.values) == list(messages.AIDING_FIELDS[kind])
-               for kind, e in daemon.aiding_inbox)
-    assert [x for field in daemon.aiding_inbox[2][1].values.values() for x in field] == AIDING_EPOCHS["master"]
+    odo = [e for e in expected if e[0] == "odo"]
+    # the odometer epochs go to the configured odo track, the other kinds are counted as unused
+    assert counters["odo_epochs"] == len(odo) == 17 and counters["aiding_unused"] == len(expected) - len(odo)
+    assert daemon.tracks["odo"].latest_time == pytest.approx(odo[-1][2], abs=1e-9)
+    assert all(counters.get(k, 0) == 0 for k in ("seq_gaps", "seq_repeats", "odo_repeats", "odo_out_of_order",
+                                                  "odo_non_finite", "odo_gaps"))
     assert "unknown aiding kind code 7" in subscriber.status[-1]["last_error"]
+
+
+def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_over_zenoh(tmp_path, pty_pair,
+                                                                                          running):
+    """IMU frames on the pty, the odometer on …/aid/odo two seconds of data behind: the samples wait for
+    their aiding, and the records equal the offline replay of the recording with the odometer log."""
+    import threading
+
+    from sinsalign.service.align.conventions import DEG
+    from sinsalign.tools.sim.aiding import odometer_epochs, write_body_velocity_log
+    from sinsalign.tools.sim.imu import simulate
+    from sinsalign.tools.sim.scenarios import get_scenario
+    scenario = get_scenario("seed003-20").for_seed(1)
+    seconds, speed = 30.0, 20.0
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1,
+                        chunk_samples=10**6)
+    epochs = odometer_epochs(scenario, 1)[:round(seconds * 100)]
+    run = running(site={"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
+                        "height_m": scenario.site.height_m},
+                  imu={"rate_hz": scenario.rate_hz}, sensor=scenario.grade.datasheet(),
+                  aiding={"inputs": ["odo"], "window_s": 15.0, "relevel_interval_s": 2.0, "max_wait_s": 10.0})
+    daemon, subscriber = run.daemon, run.subscriber
+    publisher = subscriber.session.declare_publisher(daemon.keys.aid("odo"),
+                                                     congestion_control=zenoh.CongestionControl.BLOCK)
+
+    def send_odometer():
+        time.sleep(2.0 / speed)   # two seconds of data late
+        start = time.monotonic()
+        for seq, row in enumerate(epochs):
+            delay = row[0] / speed - (time.monotonic() - start)
+            if delay > 0:
+                time.sleep(delay)
+            sample = messages.AidingSample("odo", seq, float(row[0]), {"v_b": tuple(row[1:])})
+            publisher.put(messages.pack(messages.aiding_message(sample)))
+
+    sender = threading.Thread(target=send_odometer)
+    sender.start()
+    FramePlayer(pty_pair.master_fd, speed=speed).play(chunk.t, chunk.dtheta, chunk.dv)
+    sender.join()
+    n_records = int(seconds / run.config.output.period_s)
+    subscriber.wait_for(n_records, timeout_s=15)
+    time.sleep(0.3)
+    run.stop()
+    counters = subscriber.status[-1]["counters"]
+    assert counters["odo_epochs"] == len(epochs) and counters["samples_used"] == len(chunk.t)
+    assert messages.fault_count(counters) == 0, {k: v for k, v in counters.items() if v}
+    assert len(subscriber.attitude) == n_records
+    assert subscriber.attitude[-1]["phase"] in ("fine", "aligned")
+    write_body_velocity_log(tmp_path / "odo.csv", epochs[:, 0], epochs[:, 1:])
+    import json
+
+    from sinsalign.tools.replay import replay
+    replay(tmp_path / "recorded.csv", tmp_path / "replayed.jsonl", run.config, progress=False,
+           aids={"odo": str(tmp_path / "odo.csv")})
+    offline = [json.loads(line) for line in (tmp_path / "replayed.jsonl").read_text().splitlines()]
+    # equal to within 1e-4 σ: the live path differs from the replay by up to ~2e-6° in some runs (not
+    # bit-identical as the fixed-site daemon is; cause not found yet, see the README's known issues)
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment
+    assert [m["t"] for m in subscriber.attitude] == [r["t"] for r in offline]
+    difference = np.abs(misalignment(dcm_from_quat(np.array([m["q"] for m in subscriber.attitude])),
+                                     dcm_from_quat(np.array([r["q"] for r in offline])))).max(axis=1) / DEG
+    sigma = np.array([r["heading_sigma_deg"] for r in offline])
+    worst = int(np.argmax(difference / sigma))
+    assert (difference <= 1e-4 * sigma).all(), (worst, difference[worst], sigma[worst], difference.max())
+    assert [m["phase"] for m in subscriber.attitude] == [r["phase"] for r in offline]

@@ -170,6 +170,15 @@ class CentredWahba:
             self.n_obs += 1
         self.rho = 1.0 / max(self.n_obs, 1)
 
+    @classmethod
+    def from_pairs(cls, b: np.ndarray, r: np.ndarray) -> CentredWahba:
+        """The solver holding the M pairs (M, 3) at once (vectorised sums; offline batches)."""
+        solver = cls()
+        solver.S_br, solver.S_b, solver.S_r = b.T @ r, b.sum(axis=0), r.sum(axis=0)
+        solver.n_obs = len(b)
+        solver.rho = 1.0 / max(len(b), 1)
+        return solver
+
     @property
     def K(self) -> np.ndarray:
         B = self.S_br - np.outer(self.S_b, self.S_r) / max(self.n_obs, 1)

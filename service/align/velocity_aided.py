@@ -25,7 +25,7 @@ from .coarse import InertialCoarseAlignment
 from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec
 from .earth import C_n_n0_fixed, Site, beta_fixed, earth_rate_n, normal_gravity, position_rate, transport_rate_n
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, bias_limit_rad
-from .solvers import make_solver
+from .solvers import CentredWahba, make_solver
 from .strapdown import prefix_quat_product
 
 RESIDUAL_REJECT_FACTOR = 6.0
@@ -117,8 +117,11 @@ class MultistageResult:
 
 
 def _solve(alpha: np.ndarray, beta: np.ndarray, keep: np.ndarray, solver: str) -> np.ndarray:
-    s = make_solver(solver)
-    s.fold(*s.prepare(alpha[keep], beta[keep], np.ones(int(keep.sum()))))
+    if solver == "centred":
+        s = CentredWahba.from_pairs(alpha[keep], beta[keep])
+    else:
+        s = make_solver(solver)
+        s.fold(*s.prepare(alpha[keep], beta[keep], np.ones(int(keep.sum()))))
     return dcm_from_quat(s.quaternion())
 
 
