@@ -63,10 +63,12 @@ class VelocityAidedPipeline(AlignmentPipeline):
         source: VelocityAidedSource = self.coarse.source
         if aided and source.C_b0_n0 is not None:
             source.advance(elapsed_s, C_b_b0, aid)   # C_n^{n0} with transport rate between re-runs, and after
-        if not self._window_solved and (elapsed_s + 1e-9 >= self._next_relevel_s or source.window_full(elapsed_s)):
-            self.coarse.relevel(elapsed_s)
-            self._next_relevel_s += self.config.aiding.relevel_interval_s
-            self._window_solved = source.window_full(elapsed_s) and source.C_b0_n0 is not None
+        # the levels run one per control step (a re-run of the full window costs tens of ms at once)
+        due = elapsed_s + 1e-9 >= self._next_relevel_s or source.window_full(elapsed_s)
+        if not source.relevelling and not self._window_solved and due and self.coarse.start_relevel(elapsed_s):
+            self._next_relevel_s = elapsed_s + self.config.aiding.relevel_interval_s
+        if source.relevelling and source.step_relevel(1):
+            self._window_solved = source.relevel_window_full
         if self.fine is not None and self._window_solved and aided:
             solution = self.coarse.solution_at(t_end, q_b_b0)
             C_b_n = dcm_from_quat(solution.q_b_n)

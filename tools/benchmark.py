@@ -100,7 +100,8 @@ def bench_aided_latency(speed_mps: int = 80, seconds: float = 180.0) -> dict[str
     us = cost * 1e6
     period_us = 1e6 / scenario.rate_hz
     return {"mean_us": float(us.mean()), "p50_us": float(np.percentile(us, 50)), "p99_us": float(np.percentile(us, 99)),
-            "max_us": float(us.max()), "period_us": period_us, "mean_share": float(us.mean() / period_us)}
+            "max_us": float(us.max()), "max_at_s": float(chunk.t[int(np.argmax(us))]), "period_us": period_us,
+            "mean_share": float(us.mean() / period_us)}
 
 
 def bench_stream_memory(hours: float = 24.0, rate_hz: float = 200.0,

@@ -17,6 +17,7 @@ them when asked (:meth:`VelocityAidedSource.relevel`); :func:`multistage` is the
 """
 from __future__ import annotations
 
+from collections.abc import Generator
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,9 +47,14 @@ class VelocityWindow:
     V_b: np.ndarray
     V_b0: np.ndarray
 
+    @property
+    def V_b0_axes(self) -> np.ndarray:
+        """C_b^{b0} V^b (N, 3): the aiding velocity in b0 axes."""
+        return (self.C_b_b0 @ self.V_b[..., None])[..., 0]
+
     def observation_vectors(self) -> np.ndarray:
         """α (N, 3): ∫ C f − C_b^{b0} V^b + V^b(0)."""
-        return self.alpha_f - (self.C_b_b0 @ self.V_b[..., None])[..., 0] + self.V_b0
+        return self.alpha_f - self.V_b0_axes + self.V_b0
 
 
 @dataclass(frozen=True, slots=True)
@@ -86,7 +92,7 @@ def dual_velocity_track(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray
     the levels converge to the exact track together with the attitude.
     """
     t = window.elapsed_s
-    V_n = np.einsum("nji,jk,nkl,nl->ni", previous.C_n_n0, C_b0_n0, window.C_b_b0, window.V_b)
+    V_n = np.einsum("nji,nj->ni", previous.C_n_n0, window.V_b0_axes @ C_b0_n0.T)
     lat, h = previous.position[:, 0], previous.position[:, 2]
     position = np.array([start.lat, start.lon, start.height_m]) + _cumulative_trapezoid(
         t, position_rate(V_n, lat, h))
@@ -150,18 +156,18 @@ def joint_fit(alpha: np.ndarray, beta: np.ndarray, C_b0_n0: np.ndarray, keep: np
     """
     r = beta[keep]
     e = alpha[keep] - r @ C_b0_n0
-    G = np.einsum("ij,njk->nik", C_b0_n0.T, skew_rows(r))          # A [β_k×]  (n, 3, 3)
+    G = C_b0_n0.T @ skew_rows(r)                                    # A [β_k×]  (n, 3, 3)
     n = len(r)
     with_bias = J is not None and bias_sigma_ms2 > 0.0
     blocks = [G] + ([J[keep]] if with_bias else [])
     D = np.concatenate(blocks, axis=2)
     D = D - D.mean(axis=0)                                      # centring removes c
     e = e - e.mean(axis=0)
-    M = np.einsum("nki,nkj->ij", D, D)
-    v = np.einsum("nki,nk->i", D, e)
+    D_rows = D.reshape(-1, D.shape[2])                             # (3n, m): one row per axis and pair
+    M = D_rows.T @ D_rows
+    v = D_rows.T @ e.reshape(-1)
     x_plain = np.linalg.lstsq(M, v, rcond=None)[0]
-    sigma2 = max(float(((e - np.einsum("nki,i->nk", D, x_plain)) ** 2).sum()) / max(3 * n - 6 - D.shape[2], 1),
-                 1e-12)
+    sigma2 = max(float(((e.reshape(-1) - D_rows @ x_plain) ** 2).sum()) / max(3 * n - 6 - D.shape[2], 1), 1e-12)
     if with_bias:
         M = M + np.diag([0.0] * 3 + [sigma2 / bias_sigma_ms2**2] * 3)
     x = np.linalg.solve(M + 1e-12 * np.trace(M) * np.eye(len(M)), v)
@@ -179,11 +185,25 @@ def skew_rows(v: np.ndarray) -> np.ndarray:
 
 def multistage(window: VelocityWindow, start: Site, levels: int = 10, solver: str = "centred",
                first: np.ndarray | None = None, acc_bias_sigma_ms2: float = 0.0) -> MultistageResult:
-    """Levels 1..``levels`` over the window (level 1 traditional, or ``first`` given: a level-1
-    estimate already at hand); from level 2 on, pairs whose residual is an outlier are left out.
+    """Levels 1..``levels`` over the window at once (see :func:`multistage_levels`)."""
+    steps = multistage_levels(window, start, levels, solver, first, acc_bias_sigma_ms2)
+    while True:
+        try:
+            next(steps)
+        except StopIteration as done:
+            return done.value
 
-    With ``acc_bias_sigma_ms2`` > 0 each level also estimates the accelerometer bias (:func:`joint_fit`):
-    on a turning vehicle ∫ C_b^{b0} ∇ dt is no longer a tilt and would pull the heading by degrees.
+
+def multistage_levels(window: VelocityWindow, start: Site, levels: int = 10, solver: str = "centred",
+                      first: np.ndarray | None = None, acc_bias_sigma_ms2: float = 0.0
+                      ) -> Generator[None, None, MultistageResult]:
+    """Levels 1..``levels`` over the window, one level per ``next()`` (the live daemon slices them);
+    the generator's return value is the :class:`MultistageResult`.
+
+    Level 1 is traditional, or ``first`` given: a level-1 estimate already at hand. From level 2 on,
+    pairs whose residual is an outlier are left out. With ``acc_bias_sigma_ms2`` > 0 each level also
+    estimates the accelerometer bias (:func:`joint_fit`): on a turning vehicle ∫ C_b^{b0} ∇ dt is no
+    longer a tilt and would pull the heading by degrees.
     """
     alpha = window.observation_vectors()
     J = bias_integral(window) if acc_bias_sigma_ms2 > 0.0 else None
@@ -204,6 +224,7 @@ def multistage(window: VelocityWindow, start: Site, levels: int = 10, solver: st
             estimate = _solve(corrected, track.beta, keep, solver)
         nabla, covariance = joint_fit(alpha, track.beta, estimate, keep, J, acc_bias_sigma_ms2)
         estimates.append(estimate)
+        yield
     if levels == 1:
         covariance = joint_fit(alpha, track.beta, estimates[0], keep, None, 0.0)[1]
     return MultistageResult(estimates, track, keep, covariance, nabla)
@@ -240,6 +261,8 @@ class VelocityAidedSource:
         self._n = 0
         self.V_b0: np.ndarray | None = None
         self.result: MultistageResult | None = None
+        self._relevel: tuple[VelocityWindow, Generator[None, None, MultistageResult]] | None = None
+        self.relevel_window_full = False
         self._head: tuple[float, np.ndarray, np.ndarray] | None = None   # (elapsed, C_n_n0, position) latest
 
     def window_full(self, elapsed_s: float) -> bool:
@@ -273,16 +296,34 @@ class VelocityAidedSource:
         return VelocityWindow(rows[:, 0], rows[:, 1:4], rows[:, 4:13].reshape(-1, 3, 3), rows[:, 13:],
                               self.V_b0 if self.V_b0 is not None else np.zeros(3))
 
-    def relevel(self, upto_elapsed_s: float, first: np.ndarray | None = None) -> MultistageResult | None:
-        """Re-run the levels over the epochs stored up to ``upto_elapsed_s`` (``first``: a level-1 estimate
-        to start from instead of the traditional model)."""
+    def start_relevel(self, upto_elapsed_s: float, first: np.ndarray | None = None) -> bool:
+        """Begin re-running the levels over the epochs stored up to ``upto_elapsed_s`` (``first``: a level-1
+        estimate to start from instead of the traditional model); False if too few epochs yet."""
         window = self.window(upto_elapsed_s)
         if len(window.elapsed_s) < 10:
-            return None
-        self.result = multistage(window, self.site, self.levels, self.solver, first, self.acc_bias_sigma_ms2)
-        track = self.result.track
-        self._head = (float(window.elapsed_s[-1]), track.C_n_n0[-1], track.position[-1])
-        return self.result
+            return False
+        self._relevel = (window, multistage_levels(window, self.site, self.levels, self.solver, first,
+                                                   self.acc_bias_sigma_ms2))
+        self.relevel_window_full = len(window.elapsed_s) == len(self._store)
+        return True
+
+    @property
+    def relevelling(self) -> bool:
+        return self._relevel is not None
+
+    def step_relevel(self, levels: int | None = None) -> bool:
+        """Run ``levels`` more levels of the re-run in progress (None: all); True once it is done and its
+        estimate replaced the previous one."""
+        window, steps = self._relevel
+        for _ in range(levels if levels is not None else self.levels + 1):
+            try:
+                next(steps)
+            except StopIteration as done:
+                self.result, self._relevel = done.value, None
+                track = self.result.track
+                self._head = (float(window.elapsed_s[-1]), track.C_n_n0[-1], track.position[-1])
+                return True
+        return False
 
     def advance(self, elapsed_s: float, C_b_b0: np.ndarray, V_b: np.ndarray) -> None:
         """Carry position and C_n^{n0} on to ``elapsed_s`` with the latest estimate (one control step)."""
@@ -321,11 +362,11 @@ class MultistageCoarseAlignment(InertialCoarseAlignment):
 
     source: VelocityAidedSource
 
-    def relevel(self, elapsed_s: float) -> None:
-        """Re-run the levels on the window up to ``elapsed_s``, the first level from the previous run's
-        estimate: over successive runs the levels converge to the exact (dual-velocity) solution,
+    def start_relevel(self, elapsed_s: float) -> bool:
+        """Begin a re-run of the levels on the window up to ``elapsed_s``, the first level from the previous
+        run's estimate: over successive runs the levels converge to the exact (dual-velocity) solution,
         however short the early windows were."""
-        self.source.relevel(elapsed_s, self.source.C_b0_n0 if self.source.levels > 1 else None)
+        return self.source.start_relevel(elapsed_s, self.source.C_b0_n0 if self.source.levels > 1 else None)
 
     @property
     def q_b_n0(self) -> np.ndarray:
