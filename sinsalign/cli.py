@@ -203,6 +203,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
         overrides.setdefault("zenoh", {})["imu_input"] = True
     if args.record:
         overrides["daemon"] = {"record_path": args.record}
+    if args.aid:
+        overrides["aiding"] = {"inputs": args.aid}
     config = load_config(args.config, overrides)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)
@@ -376,6 +378,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--zenoh-imu", action="store_true", help="also take IMU samples from <prefix>/<unit>/imu")
     p.add_argument("--record", metavar="CSV", help="record the decoded input as an IMU log (owner-only file)")
     p.add_argument("--period", type=float, metavar="S", help="attitude output period (default 1 s)")
+    p.add_argument("--aid", action="append", metavar="KIND",
+                   help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames): odo selects "
+                   "in-motion alignment with odometer/DVL velocity (aiding.inputs); repeatable")
     _add_alignment_options(p)
     _add_zenoh_options(p)
     p.set_defaults(func=cmd_serve)
