@@ -37,8 +37,9 @@ class VelocityAidedPipeline(AlignmentPipeline):
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a, ad = self.config.alignment, self.config.aiding
-        source = VelocityAidedSource(self.site, ad.window_s, a.obs_interval_s, ad.levels, ad.solver,
-                                     self.grade.acc_bias_ms2)
+        priors = {"acc_bias_sigma_ms2": self.grade.acc_bias_ms2, "odo_scale_sigma": ad.odo_scale_sigma,
+                  "odo_lever_m": np.array(ad.odo_lever_m), "odo_lever_sigma_m": ad.odo_lever_sigma_m}
+        source = VelocityAidedSource(self.site, ad.window_s, a.obs_interval_s, ad.levels, ad.solver, priors)
         self._next_relevel_s = ad.relevel_interval_s
         self._window_solved = False
         return MultistageCoarseAlignment(source, self.grade, make_solver(ad.solver, a.request_rho),
@@ -72,8 +73,15 @@ class VelocityAidedPipeline(AlignmentPipeline):
         if self.fine is not None and self._window_solved and aided:
             solution = self.coarse.solution_at(t_end, q_b_b0)
             C_b_n = dcm_from_quat(solution.q_b_n)
+            result = source.result
+            odometer = self.fine.measurements["odo"]
+            known = {"odo_scale": odometer.scale, "odo_lever": odometer.lever}
+            extra = [(result.nuisance[k], result.nuisance_sigma[k]) for k in ("odo_scale", "odo_lever")
+                     if known[k] and k in result.nuisance]
             self.fine.start(C_b_n, C_b_b0, C_b_n @ aid, source.position, solution.level_sigma_deg * DEG,
-                            solution.heading_sigma_deg * DEG, HANDOVER_VELOCITY_SIGMA_FACTOR * self.odo_std_mps)
+                            solution.heading_sigma_deg * DEG, HANDOVER_VELOCITY_SIGMA_FACTOR * self.odo_std_mps,
+                            extra={"odo": tuple(np.concatenate(p) for p in zip(*extra, strict=True))} if extra
+                            else None)
 
     def aiding_counters(self) -> dict[str, int]:
         """What the estimators made of the aiding: observations without it, multistage pairs left out as

@@ -121,3 +121,30 @@ def test_aided_configuration_is_checked_and_modes_are_selected_by_the_aids():
 def test_without_imu_errors_the_ideal_scenario_has_no_odometer_noise():
     assert get_scenario("seed003-80-ideal").odometer.noise_mps == 0.0
     assert get_scenario("seed003-80-ideal").errors == ImuErrors()
+
+
+def test_odometer_scale_factor_and_lever_arm_are_fitted_in_the_window_and_carried_on_by_the_kalman_stage():
+    # a 0.5 % scale factor alone pulls the coarse heading by tens of degrees and a 1.7-m lever arm by
+    # two; fitted with the attitude (priors 1 % and 1 m), both cost little, and the Kalman stage
+    # starts from the window's estimates and refines them
+    scenario = get_scenario("seed003-60")
+    odometer = replace(scenario.odometer, scale=0.005, lever_b=(0.3, 1.5, -0.8))
+    scenario = replace(scenario, odometer=odometer)
+    fitted = {"aiding": {"odo_scale_sigma": 0.01, "odo_lever_sigma_m": 1.0}}
+    ignored = run_once(replace(scenario, duration_s=120.0), 3, config_from_mapping(COARSE_ONLY))
+    assert abs(heading_at(ignored, 120.0)) > 5.0
+    config = config_from_mapping(fitted)
+    pipeline_run = run_once(scenario, 3, config)
+    assert abs(heading_at(pipeline_run, 120.0)) < 0.8 and abs(heading_at(pipeline_run, 600.0)) < 0.1
+    assert pipeline_run.counters["odo_rejected"] < 20
+    # the estimates themselves, from a pipeline run to 300 s
+    short = replace(scenario, duration_s=300.0).for_seed(3)
+    pipeline = build_pipeline(config, short.site, short.rate_hz, short.grade.datasheet(), {"odo": 0.03})
+    feed = AidingFeed(AidingTrack(3), iter([odometer_epochs(short, 3)]))
+    for chunk in simulate(short.motion, short.site, short.errors, short.rate_hz, short.duration_s, 3):
+        pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.values_at(chunk.t))
+    window = pipeline.coarse.source.result.nuisance
+    assert window["odo_scale"][0] == pytest.approx(0.005, abs=0.001)
+    assert window["odo_lever"] == pytest.approx([0.3, 1.5, -0.8], abs=0.3)
+    kalman = pipeline.fine.extra("odo")
+    assert kalman[0] == pytest.approx(0.005, abs=0.0005) and kalman[1:] == pytest.approx([0.3, 1.5, -0.8], abs=0.2)

@@ -115,13 +115,16 @@ class ErrorStateFilter:
 
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, V_n: np.ndarray, position: np.ndarray,
               tilt_sigma_rad: float, heading_sigma_rad: float, velocity_sigma_mps: float,
-              velocity_from_attitude: bool = True) -> None:
+              velocity_from_attitude: bool = True,
+              extra: dict[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
         """Hand-over from the coarse stage: attitude C_b^n (3, 3) of the body attitude C_b^{b0}, V^n,
         position, and their 1-sigma errors.
 
         ``velocity_from_attitude``: V^n is a body velocity turned by this attitude (V̂ = Ĉ_b^n V^b), so
         its error holds the attitude's, δV = [V×] φ + noise: the covariance says so, or else the
         first body-velocity reading would "see" the heading error and collapse its σ at once.
+        ``extra``: (values, 1-sigma) of a measurement's own states known from the coarse stage, in place
+        of the measurement's priors.
         """
         self.C_n_n0 = np.eye(3)
         self.C_b0_n0 = C_b_n @ C_b_b0.T
@@ -134,7 +137,7 @@ class ErrorStateFilter:
         self.x = np.zeros(self.n_states)
         extra_sigma = []
         for name, m in self.measurements.items():
-            values, sigmas = m.initial_extra()
+            values, sigmas = (extra or {}).get(name) or m.initial_extra()
             self.x[self._extra[name]] = values
             extra_sigma.append(sigmas)
         self.P = np.diag(np.concatenate([sigma, *extra_sigma]) ** 2)

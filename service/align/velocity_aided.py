@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .coarse import InertialCoarseAlignment
-from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec
+from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec, rotvec_from_quat
 from .earth import C_n_n0_fixed, Site, beta_fixed, earth_rate_n, normal_gravity, position_rate, transport_rate_n
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, bias_limit_rad
 from .solvers import CentredWahba, make_solver
@@ -113,13 +113,19 @@ def dual_velocity_track(window: VelocityWindow, start: Site, C_b0_n0: np.ndarray
 class MultistageResult:
     """Each level's C_b0^n0, the last level's track, which pairs it kept, the noise covariance
     (3, 3) rad² of its attitude error in n0 axes (from the residuals of the kept pairs), and the
-    accelerometer bias (3,) m/s² in body axes it estimated (zero when not asked to)."""
+    nuisance parameters it fitted with their 1-sigma (:class:`Nuisance`: accelerometer bias in body
+    axes, odometer scale factor and lever arm; only those asked for)."""
 
     levels: list[np.ndarray]
     track: NavTrack
     kept: np.ndarray
     covariance: np.ndarray
-    acc_bias_ms2: np.ndarray
+    nuisance: dict[str, np.ndarray]
+    nuisance_sigma: dict[str, np.ndarray]
+
+    @property
+    def acc_bias_ms2(self) -> np.ndarray:
+        return self.nuisance.get("acc_bias", np.zeros(3))
 
 
 def _solve(alpha: np.ndarray, beta: np.ndarray, keep: np.ndarray, solver: str) -> np.ndarray:
@@ -146,33 +152,93 @@ def bias_integral(window: VelocityWindow) -> np.ndarray:
     return first + np.concatenate((np.zeros((1, 3, 3)), np.cumsum(steps, axis=0)))
 
 
-def joint_fit(alpha: np.ndarray, beta: np.ndarray, C_b0_n0: np.ndarray, keep: np.ndarray, J: np.ndarray | None,
-              bias_sigma_ms2: float) -> tuple[np.ndarray, np.ndarray]:
-    """Linearised least squares about A = C_n0^b0 of α_k − A β_k = A [β_k×] δθ + c + J_k ∇ + noise.
+@dataclass(frozen=True, slots=True)
+class Nuisance:
+    """Parameters fitted alongside the attitude, linear in α: α_k = A β_k + c + X_k x + noise.
 
-    δθ (n0 axes) and c are free, ∇ has the prior N(0, bias_sigma²) (turns make it observable; a
-    straight run leaves it to the prior). Returns (∇ (3,) m/s², covariance of δθ (3, 3) rad²) with
-    the noise variance per axis from the residuals.
+    X (N, 3, m) per epoch; x has the prior N(mean, sigma²) per component (sigma 0: held at its mean).
+    ``names`` (m,) say which is which: acc_bias (∇, body axes, m/s²), odo_scale, odo_lever (body, m).
+    """
+
+    X: np.ndarray
+    mean: np.ndarray
+    sigma: np.ndarray
+    names: tuple[str, ...]
+
+    def split(self, x: np.ndarray) -> dict[str, np.ndarray]:
+        out: dict[str, list[float]] = {}
+        for name, value in zip(self.names, x, strict=True):
+            out.setdefault(name, []).append(float(value))
+        return {k: np.array(v) for k, v in out.items()}
+
+
+def body_rates(window: VelocityWindow) -> np.ndarray:
+    """ω_ib^b (N, 3) rad/s at the epochs, by central differences of the stored C_b^{b0}."""
+    C, t = window.C_b_b0, window.elapsed_s
+    if len(t) < 2:
+        return np.zeros((len(t), 3))
+    before, after = np.r_[0, np.arange(len(t) - 1)], np.r_[np.arange(1, len(t)), len(t) - 1]
+    step = rotvec_from_quat(quat_from_dcm(np.swapaxes(C[before], 1, 2) @ C[after]))
+    return step / (t[after] - t[before])[:, None]
+
+
+def nuisance_model(window: VelocityWindow, acc_bias_sigma_ms2: float = 0.0, odo_scale_sigma: float = 0.0,
+                   odo_lever_m: np.ndarray | None = None, odo_lever_sigma_m: float = 0.0) -> Nuisance | None:
+    """The nuisance parameters of a body-velocity window: accelerometer bias (∫C_b^{b0} dt ∇), odometer
+    scale factor (the reading (1 + k) V^b puts −k C_b^{b0} V^b into α) and lever arm (−C_b^{b0} ω × l)."""
+    blocks, means, sigmas, names = [], [], [], []
+    if acc_bias_sigma_ms2 > 0.0:
+        blocks.append(bias_integral(window))
+        means += [0.0] * 3
+        sigmas += [acc_bias_sigma_ms2] * 3
+        names += ["acc_bias"] * 3
+    if odo_scale_sigma > 0.0:
+        blocks.append(-window.V_b0_axes[:, :, None])
+        means.append(0.0)
+        sigmas.append(odo_scale_sigma)
+        names.append("odo_scale")
+    lever = np.zeros(3) if odo_lever_m is None else np.asarray(odo_lever_m, dtype=float)
+    if odo_lever_sigma_m > 0.0 or lever.any():
+        blocks.append(-window.C_b_b0 @ skew_rows(body_rates(window)))
+        means += list(lever)
+        sigmas += [odo_lever_sigma_m] * 3
+        names += ["odo_lever"] * 3
+    if not blocks:
+        return None
+    return Nuisance(np.concatenate(blocks, axis=2), np.array(means), np.array(sigmas), tuple(names))
+
+
+def joint_fit(alpha: np.ndarray, beta: np.ndarray, C_b0_n0: np.ndarray, keep: np.ndarray,
+              nuisance: Nuisance | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Linearised least squares about A = C_n0^b0 of α_k − A β_k = A [β_k×] δθ + c + X_k x + noise.
+
+    δθ (n0 axes) and c are free, x has its prior (turns make the bias and lever arm observable,
+    speed changes the scale factor; what the drive leaves unobservable stays at the prior). Returns
+    (x (m,), its covariance (m, m), covariance of δθ (3, 3) rad²), the noise variance per axis from
+    the residuals.
     """
     r = beta[keep]
     e = alpha[keep] - r @ C_b0_n0
     G = C_b0_n0.T @ skew_rows(r)                                    # A [β_k×]  (n, 3, 3)
     n = len(r)
-    with_bias = J is not None and bias_sigma_ms2 > 0.0
-    blocks = [G] + ([J[keep]] if with_bias else [])
-    D = np.concatenate(blocks, axis=2)
-    D = D - D.mean(axis=0)                                      # centring removes c
+    m = 0 if nuisance is None else len(nuisance.mean)
+    D = G if nuisance is None else np.concatenate((G, nuisance.X[keep]), axis=2)
+    D = D - D.mean(axis=0)                                          # centring removes c
     e = e - e.mean(axis=0)
-    D_rows = D.reshape(-1, D.shape[2])                             # (3n, m): one row per axis and pair
+    D_rows = D.reshape(-1, D.shape[2])                              # (3n, 3 + m): one row per axis and pair
     M = D_rows.T @ D_rows
     v = D_rows.T @ e.reshape(-1)
     x_plain = np.linalg.lstsq(M, v, rcond=None)[0]
-    sigma2 = max(float(((e.reshape(-1) - D_rows @ x_plain) ** 2).sum()) / max(3 * n - 6 - D.shape[2], 1), 1e-12)
-    if with_bias:
-        M = M + np.diag([0.0] * 3 + [sigma2 / bias_sigma_ms2**2] * 3)
-    x = np.linalg.solve(M + 1e-12 * np.trace(M) * np.eye(len(M)), v)
-    covariance = sigma2 * np.linalg.inv(M + 1e-12 * np.trace(M) * np.eye(len(M)))
-    return (x[3:] if with_bias else np.zeros(3)), covariance[:3, :3]
+    sigma2 = max(float(((e.reshape(-1) - D_rows @ x_plain) ** 2).sum()) / max(3 * n - 6 - m, 1), 1e-12)
+    if nuisance is not None:
+        # prior N(mean, σ²) as pseudo-observations; σ = 0 holds the parameter at its mean
+        weight = np.where(nuisance.sigma > 0.0, sigma2 / np.maximum(nuisance.sigma, 1e-300) ** 2, 1e12 * np.trace(M))
+        M = M + np.diag(np.r_[np.zeros(3), weight])
+        v = v + np.r_[np.zeros(3), weight * nuisance.mean]
+    M = M + 1e-12 * np.trace(M) * np.eye(len(M))
+    x = np.linalg.solve(M, v)
+    covariance = sigma2 * np.linalg.inv(M)
+    return x[3:], covariance[3:, 3:], covariance[:3, :3]
 
 
 def skew_rows(v: np.ndarray) -> np.ndarray:
@@ -184,9 +250,13 @@ def skew_rows(v: np.ndarray) -> np.ndarray:
 
 
 def multistage(window: VelocityWindow, start: Site, levels: int = 10, solver: str = "centred",
-               first: np.ndarray | None = None, acc_bias_sigma_ms2: float = 0.0) -> MultistageResult:
-    """Levels 1..``levels`` over the window at once (see :func:`multistage_levels`)."""
-    steps = multistage_levels(window, start, levels, solver, first, acc_bias_sigma_ms2)
+               first: np.ndarray | None = None, acc_bias_sigma_ms2: float = 0.0,
+               nuisance: Nuisance | None = None) -> MultistageResult:
+    """Levels 1..``levels`` over the window at once (see :func:`multistage_levels`); ``nuisance``
+    defaults to the accelerometer bias alone with prior ``acc_bias_sigma_ms2``."""
+    if nuisance is None:
+        nuisance = nuisance_model(window, acc_bias_sigma_ms2)
+    steps = multistage_levels(window, start, levels, solver, first, nuisance)
     while True:
         try:
             next(steps)
@@ -195,39 +265,46 @@ def multistage(window: VelocityWindow, start: Site, levels: int = 10, solver: st
 
 
 def multistage_levels(window: VelocityWindow, start: Site, levels: int = 10, solver: str = "centred",
-                      first: np.ndarray | None = None, acc_bias_sigma_ms2: float = 0.0
+                      first: np.ndarray | None = None, nuisance: Nuisance | None = None
                       ) -> Generator[None, None, MultistageResult]:
     """Levels 1..``levels`` over the window, one level per ``next()`` (the live daemon slices them);
     the generator's return value is the :class:`MultistageResult`.
 
     Level 1 is traditional, or ``first`` given: a level-1 estimate already at hand. From level 2 on,
-    pairs whose residual is an outlier are left out. With ``acc_bias_sigma_ms2`` > 0 each level also
-    estimates the accelerometer bias (:func:`joint_fit`): on a turning vehicle ∫ C_b^{b0} ∇ dt is no
-    longer a tilt and would pull the heading by degrees.
+    pairs whose residual is an outlier are left out. Each level also fits the ``nuisance`` parameters
+    (:func:`joint_fit`): on a turning vehicle a body-fixed accelerometer bias integrates to
+    ∫ C_b^{b0} ∇ dt, no longer a tilt, and would pull the heading by degrees; so would an odometer
+    scale factor of half a percent (tens of degrees) or a lever arm of a metre.
     """
     alpha = window.observation_vectors()
-    J = bias_integral(window) if acc_bias_sigma_ms2 > 0.0 else None
     track = fixed_track(start, window.elapsed_s)
     keep = np.ones(len(alpha), dtype=bool)
-    estimates = [_solve(alpha, track.beta, keep, solver) if first is None else first]
-    nabla = np.zeros(3)
+    x = np.zeros(0) if nuisance is None else nuisance.mean.copy()
+    x_covariance = np.zeros((len(x), len(x)))
+
+    def corrected() -> np.ndarray:
+        return alpha if nuisance is None else alpha - nuisance.X @ x
+
+    estimates = [_solve(corrected(), track.beta, keep, solver) if first is None else first]
     covariance = np.full((3, 3), np.nan)
     for _ in range(levels - 1):
         track = dual_velocity_track(window, start, estimates[-1], track)
-        corrected = alpha if J is None else alpha - J @ nabla
-        estimate = _solve(corrected, track.beta, keep, solver)
-        residual = centred_residuals(corrected, track.beta, estimate, keep)
+        alpha_c = corrected()
+        estimate = _solve(alpha_c, track.beta, keep, solver)
+        residual = centred_residuals(alpha_c, track.beta, estimate, keep)
         limit = max(RESIDUAL_REJECT_FACTOR * float(np.median(residual[keep])), RESIDUAL_FLOOR_MPS)
         outliers = keep & (residual > limit)
         if outliers.any():
             keep = keep & ~outliers
-            estimate = _solve(corrected, track.beta, keep, solver)
-        nabla, covariance = joint_fit(alpha, track.beta, estimate, keep, J, acc_bias_sigma_ms2)
+            estimate = _solve(alpha_c, track.beta, keep, solver)
+        x, x_covariance, covariance = joint_fit(alpha, track.beta, estimate, keep, nuisance)
         estimates.append(estimate)
         yield
     if levels == 1:
-        covariance = joint_fit(alpha, track.beta, estimates[0], keep, None, 0.0)[1]
-    return MultistageResult(estimates, track, keep, covariance, nabla)
+        covariance = joint_fit(alpha, track.beta, estimates[0], keep, None)[2]
+    fitted = {} if nuisance is None else nuisance.split(x)
+    fitted_sigma = {} if nuisance is None else nuisance.split(np.sqrt(np.diag(x_covariance)))
+    return MultistageResult(estimates, track, keep, covariance, fitted, fitted_sigma)
 
 
 def multistage_alignment(window: VelocityWindow, start: Site, levels: int = 10,
@@ -246,15 +323,16 @@ class VelocityAidedSource:
 
     site : position at the alignment start. window_s, obs_interval_s : size the store.
     levels : multistage levels. solver : the solver of each level.
-    acc_bias_sigma_ms2 : prior 1-sigma of the accelerometer bias each level estimates (0: none).
+    priors : keyword arguments of :func:`nuisance_model` (accelerometer bias, odometer scale factor and
+        lever arm priors) for the parameters each level fits alongside the attitude.
     """
 
     aid_width = 3
 
     def __init__(self, site: Site, window_s: float, obs_interval_s: float, levels: int = 10,
-                 solver: str = "centred", acc_bias_sigma_ms2: float = 0.0) -> None:
+                 solver: str = "centred", priors: dict | None = None) -> None:
         self.site = site
-        self.acc_bias_sigma_ms2 = acc_bias_sigma_ms2
+        self.priors = priors or {}
         self.levels = levels
         self.solver = solver
         self._store = np.empty((int(np.ceil(window_s / obs_interval_s + 1e-9)), 16))
@@ -303,7 +381,7 @@ class VelocityAidedSource:
         if len(window.elapsed_s) < 10:
             return False
         self._relevel = (window, multistage_levels(window, self.site, self.levels, self.solver, first,
-                                                   self.acc_bias_sigma_ms2))
+                                                   nuisance_model(window, **self.priors)))
         self.relevel_window_full = len(window.elapsed_s) == len(self._store)
         return True
 
