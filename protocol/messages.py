@@ -30,8 +30,13 @@ NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_publish
 """Status counters that count work, not faults; every other counter counts a drop or a fault."""
 
 
+def faults(counters: dict[str, int]) -> dict[str, int]:
+    """The counters that count drops or faults and are not zero."""
+    return {k: v for k, v in counters.items() if v and k not in NOT_FAULTS}
+
+
 def fault_count(counters: dict[str, int]) -> int:
-    return sum(v for k, v in counters.items() if k not in NOT_FAULTS)
+    return sum(faults(counters).values())
 
 
 class MessageError(ValueError):

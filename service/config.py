@@ -73,6 +73,9 @@ class AidingConfig:
     (0: not estimated). Coarse: the multistage window (s, bounded store of window / obs interval
     rows), its levels, how often they are re-run, the solver of each level. ``max_gap_s``: epochs
     further apart are not interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
+    ``handover_heading_sigma_deg``: the Kalman stage starts only from a window whose heading σ is at
+    most this (a linear filter started several degrees off grows overconfident); a full window above it
+    keeps the coarse stage, and says so.
     Daemon: ``inputs`` lists the aiding kinds it subscribes to (``…/aid/<kind>`` on Zenoh, serial
     aiding frames) and selects the aided mode; IMU samples wait up to ``max_wait_s`` (data time)
     for their aiding to arrive.
@@ -89,6 +92,7 @@ class AidingConfig:
     solver: str = "centred"
     max_gap_s: float = 0.5
     gate_chi2: float = 16.3
+    handover_heading_sigma_deg: float = 1.0
     inputs: tuple[str, ...] = ()
     max_wait_s: float = 0.5
 
@@ -241,6 +245,7 @@ def _check(config: Config) -> Config:
         ("aiding.relevel_interval_s", ad.relevel_interval_s > 0.0, "must be > 0"),
         ("aiding.max_gap_s", ad.max_gap_s > 0.0, "must be > 0"),
         ("aiding.gate_chi2", ad.gate_chi2 > 0.0, "must be > 0"),
+        ("aiding.handover_heading_sigma_deg", 0.0 < ad.handover_heading_sigma_deg <= 10.0, "must be in (0, 10]"),
         ("aiding.max_wait_s", 0.0 <= ad.max_wait_s <= 10.0, "must be in [0, 10]"),
         ("daemon.max_bridge_samples", 0 <= config.daemon.max_bridge_samples <= 1000, "must be in 0..1000"),
     ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]

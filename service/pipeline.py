@@ -99,6 +99,7 @@ class AlignmentPipeline:
         self._start_estimators()
         self.disturbances = 0
         self.last_disturbance: str | None = None
+        self.last_notice: str | None = None   # why the alignment cannot go on as configured, for the operator
         self._disturbed_until = -np.inf
         self._reference_C_b0_n0: np.ndarray | None = None
         self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))

@@ -76,7 +76,7 @@ def test_serial_and_zenoh_inputs_together_both_reach_the_pipeline(tmp_path, pty_
     counters = subscriber.status[-1]["counters"]
     assert (counters["samples_in_serial"], counters["samples_in_zenoh"]) == (HALF, n - HALF)
     assert counters["samples_in"] == counters["samples_used"] == n
-    assert messages.fault_count(counters) == 0, {k: v for k, v in counters.items() if v}
+    assert messages.faults(counters) == {}
     assert len(subscriber.attitude) == int(SECONDS / config.output.period_s)
     assert_same_as_replay(subscriber.attitude, tmp_path / "recorded.csv", tmp_path, config)
 
@@ -136,14 +136,14 @@ def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_o
     from sinsalign.tools.sim.imu import simulate
     from sinsalign.tools.sim.scenarios import get_scenario
     scenario = get_scenario("seed003-20").for_seed(1)
-    seconds, speed = 30.0, 20.0
+    seconds, speed = 125.0, 25.0   # the default 120-s window, then the Kalman stage
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1,
                         chunk_samples=10**6)
     epochs = odometer_epochs(scenario, 1)[:round(seconds * 100)]
     run = running(site={"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
                         "height_m": scenario.site.height_m},
                   imu={"rate_hz": scenario.rate_hz}, sensor=scenario.grade.datasheet(),
-                  aiding={"inputs": ["odo"], "window_s": 15.0, "relevel_interval_s": 2.0, "max_wait_s": 10.0})
+                  aiding={"inputs": ["odo"], "max_wait_s": 10.0})
     daemon, subscriber = run.daemon, run.subscriber
     publisher = subscriber.session.declare_publisher(daemon.keys.aid("odo"),
                                                      congestion_control=zenoh.CongestionControl.BLOCK)
@@ -163,12 +163,12 @@ def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_o
     FramePlayer(pty_pair.master_fd, speed=speed).play(chunk.t, chunk.dtheta, chunk.dv)
     sender.join()
     n_records = int(seconds / run.config.output.period_s)
-    subscriber.wait_for(n_records, timeout_s=15)
+    subscriber.wait_for(n_records, timeout_s=30)
     time.sleep(0.3)
     run.stop()
     counters = subscriber.status[-1]["counters"]
     assert counters["odo_epochs"] == len(epochs) and counters["samples_used"] == len(chunk.t)
-    assert messages.fault_count(counters) == 0, {k: v for k, v in counters.items() if v}
+    assert messages.faults(counters) == {}
     assert len(subscriber.attitude) == n_records
     assert subscriber.attitude[-1]["phase"] in ("fine", "aligned")
     write_body_velocity_log(tmp_path / "odo.csv", epochs[:, 0], epochs[:, 1:])

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
-from sinsalign.service.align.conventions import DEG, misalignment
+from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.velocity_aided import multistage
 from sinsalign.service.config import ConfigError, config_from_mapping
 from sinsalign.tools.evaluate import run_once
@@ -35,13 +35,18 @@ def test_noise_free_multistage_is_exact_at_80_mps_where_the_traditional_model_is
     assert np.abs(multistage_run.phi_deg[-1, :2]).max() < 0.001
 
 
-def pipeline_and_window(scenario, seed=1, overrides=None):
-    config = config_from_mapping({**COARSE_ONLY, **(overrides or {})})
+def run_pipeline(scenario, config, seed=1):
+    """The velocity-aided pipeline over a simulated seed: (pipeline, aiding feed, records)."""
     pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"odo": 0.03})
     feed = AidingFeed(AidingTrack(3), iter([odometer_epochs(scenario, seed)]))
+    records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
-        pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.values_at(chunk.t))
-    return pipeline, feed
+        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.values_at(chunk.t))
+    return pipeline, feed, records
+
+
+def pipeline_and_window(scenario, seed=1, overrides=None):
+    return run_pipeline(scenario, config_from_mapping({**COARSE_ONLY, **(overrides or {})}), seed)[:2]
 
 
 def test_the_accelerometer_bias_of_a_turning_vehicle_is_estimated_not_left_to_pull_the_heading():
@@ -87,10 +92,11 @@ def test_bad_odometer_data_is_counted_rejected_and_survived():
 
 
 def test_a_stream_in_small_pieces_gives_the_same_bits_as_one_chunk():
-    scenario = replace(get_scenario("seed003-20"), duration_s=40.0)
-    config = config_from_mapping({"aiding": {"window_s": 20.0, "relevel_interval_s": 2.0}})
+    scenario = replace(get_scenario("seed003-20"), duration_s=130.0)   # the 120-s window, then the Kalman stage
+    config = config_from_mapping({"aiding": {"relevel_interval_s": 2.0}})
     epochs = odometer_epochs(scenario, 1)
-    chunk = next(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 40.0, 1))
+    chunk = next(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 130.0, 1,
+                          chunk_samples=10**6))
 
     def run(piece: int):
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"odo": 0.03})
@@ -148,3 +154,28 @@ def test_odometer_scale_factor_and_lever_arm_are_fitted_in_the_window_and_carrie
     assert window["odo_lever"] == pytest.approx([0.3, 1.5, -0.8], abs=0.3)
     kalman = pipeline.fine.extra("odo")
     assert kalman[0] == pytest.approx(0.005, abs=0.0005) and kalman[1:] == pytest.approx([0.3, 1.5, -0.8], abs=0.2)
+
+
+def heading_error_in_sigma(scenario, records, seed=1) -> np.ndarray:
+    t = np.array([r.t for r in records])
+    C_b_n = dcm_from_quat(np.array([r.q for r in records]))
+    heading_error = np.abs(misalignment(C_b_n, scenario.for_seed(seed).motion.attitude(t))[:, 2]) / DEG
+    return heading_error / np.array([r.heading_sigma_deg for r in records])
+
+
+def test_a_window_too_short_for_the_kalman_stage_keeps_the_coarse_stage_honest_and_says_why():
+    # seed 003 at 20 m/s: a 30-s window leaves a heading σ of ~9° (error 7.5°). A linear Kalman stage started
+    # there took σ to 0.8° in ten seconds with the error still 8°; the hand-over gate keeps the coarse stage
+    scenario = replace(get_scenario("seed003-20"), duration_s=45.0)
+    short = {"aiding": {"window_s": 30.0}}
+    pipeline, _, records = run_pipeline(scenario, config_from_mapping(short))
+    error_in_sigma = heading_error_in_sigma(scenario, records)
+    assert {r.phase for r in records} == {"coarse"} and not any(r.converged for r in records)
+    assert "lengthen aiding.window_s" in pipeline.last_notice
+    assert error_in_sigma.max() < 3.0
+    # the same run with the gate opened: the overconfidence the gate prevents
+    opened = config_from_mapping({"aiding": {"window_s": 30.0, "handover_heading_sigma_deg": 10.0}})
+    pipeline, _, records = run_pipeline(scenario, opened)
+    error_in_sigma = heading_error_in_sigma(scenario, records)
+    assert records[-1].phase != "coarse" and pipeline.last_notice is None
+    assert error_in_sigma[-1] > 5.0

@@ -6,6 +6,7 @@ limit (§3.3) comes from its actual biases rotated into the n frame with the run
 """
 from __future__ import annotations
 
+import multiprocessing
 import os
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -116,7 +117,9 @@ def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None
                 results.append(_run_task(t))
                 bar.advance(task)
         else:
-            with ProcessPoolExecutor(workers) as pool:
+            # forkserver, not fork: a fork of a process that runs Zenoh's threads (the daemon tests, a
+            # live session) can inherit a lock held mid-call and deadlock in the child
+            with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver")) as pool:
                 for r in pool.map(_run_task, tasks):
                     results.append(r)
                     bar.advance(task)
