@@ -18,6 +18,7 @@ from .align.kalman import BodyVelocity, ErrorStateFilter
 from .align.solvers import make_solver
 from .align.velocity_aided import MultistageCoarseAlignment, VelocityAidedSource
 from .config import Config, ConfigError
+from .gnss_pipeline import GnssAidedPipeline
 from .pipeline import AlignmentPipeline, result_record
 
 HANDOVER_VELOCITY_SIGMA_FACTOR = 3.0
@@ -114,7 +115,8 @@ class VelocityAidedPipeline(AlignmentPipeline):
         return result_record(solution, t_epoch, "aligned" if sigma.heading_deg <= threshold else "fine", threshold)
 
 
-AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline}
+AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline,
+               frozenset({"gnss"}): GnssAidedPipeline}
 """Which pipeline the aids given select (``replay --aid``, the daemon's ``aid/<kind>`` inputs)."""
 
 
@@ -127,4 +129,6 @@ def build_pipeline(config: Config, site: Site, rate_hz: float, datasheet: dict[s
         raise ConfigError(f"aids {', '.join(sorted(kinds))}: no aided mode for this combination yet (known: {known})")
     if not kinds:
         return AlignmentPipeline(config, site, rate_hz, datasheet, live)
+    if kinds == {"gnss"}:
+        return GnssAidedPipeline(config, site, rate_hz, datasheet, live)
     return VelocityAidedPipeline(config, site, rate_hz, datasheet, live, (aids or {}).get("odo"))

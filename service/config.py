@@ -70,9 +70,11 @@ class AidingConfig:
 
     Odometer / DVL: latency of its time stamps, noise (a log's ``vel_std_mps`` overrides), lever arm
     from the IMU (body axes, m), and the Kalman stage's priors of its scale factor and lever arm
-    (0: not estimated). Coarse: the multistage window (s, bounded store of window / obs interval
-    rows), its levels, how often they are re-run, the solver of each level. ``max_gap_s``: epochs
-    further apart are not interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
+    (0: not estimated). GNSS: latency of its time stamps, antenna lever arm from the IMU (body axes,
+    m; a GNSS log's ``# lever_*_m`` keys override it). Coarse: the multistage window (s, bounded
+    store of window / obs interval rows), its levels, how often they are re-run, the solver of each
+    level. ``max_gap_s``: epochs further apart are not interpolated across. ``gate_chi2``: innovation
+    gate of the Kalman stage.
     ``handover_heading_sigma_deg``: the Kalman stage starts only from a window whose heading σ is at
     most this (a linear filter started several degrees off grows overconfident); a full window above it
     keeps the coarse stage, and says so.
@@ -86,6 +88,8 @@ class AidingConfig:
     odo_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
     odo_scale_sigma: float = 0.0
     odo_lever_sigma_m: float = 0.0
+    gnss_latency_s: float = 0.0
+    gnss_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
     window_s: float = 120.0
     levels: int = 10
     relevel_interval_s: float = 1.0
@@ -203,6 +207,8 @@ def _check(config: Config) -> Config:
     unknown = [k for k in ad.inputs if k not in AIDING_KINDS]
     if unknown or len(set(ad.inputs)) != len(ad.inputs):
         raise ConfigError(f"aiding.inputs: {list(ad.inputs)} must name distinct kinds among {', '.join(AIDING_KINDS)}")
+    if len(ad.gnss_lever_m) != 3:
+        raise ConfigError(f"aiding.gnss_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.gnss_lever_m)}")
     if len(ad.odo_lever_m) != 3:
         raise ConfigError(f"aiding.odo_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.odo_lever_m)}")
     if config.disturbance.action not in DISTURBANCE_ACTIONS:
@@ -238,6 +244,7 @@ def _check(config: Config) -> Config:
         ("disturbance.hold_s", config.disturbance.hold_s >= 0.0, "must be ≥ 0"),
         ("aiding.odo_latency_s", 0.0 <= ad.odo_latency_s <= 10.0, "must be in [0, 10]"),
         ("aiding.odo_std_mps", ad.odo_std_mps > 0.0, "must be > 0"),
+        ("aiding.gnss_latency_s", 0.0 <= ad.gnss_latency_s <= 10.0, "must be in [0, 10]"),
         ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
         ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),
         ("aiding.window_s", 1.0 <= ad.window_s <= 3600.0, "must be in [1, 3600]"),

@@ -70,8 +70,8 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if args.duration:
         scenario = replace(scenario, duration_s=args.duration)
     files = write_simulation(scenario, args.seed, args.out_dir)
-    odo = f" and {files.odo_csv}" if files.odo_csv else ""
-    print(f"wrote {files.imu_csv}, {files.truth_csv}{odo} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
+    aids = "".join(f" and {path}" for path in (files.odo_csv, files.gnss_csv) if path)
+    print(f"wrote {files.imu_csv}, {files.truth_csv}{aids} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
     return 0
 
 

@@ -22,7 +22,7 @@ from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 
-from .sim.aiding import odometer_epochs, with_odometer_faults
+from .sim.aiding import gnss_epochs, odometer_epochs, with_odometer_faults
 from .sim.imu import simulate
 from .sim.scenarios import Scenario, get_scenario
 
@@ -70,7 +70,14 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
         phi = np.asarray(initial_error_deg, dtype=float) * DEG
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
     feed = None
-    if scenario.odometer is None:
+    if scenario.gnss is not None:
+        # the antenna's lever arm as its log would state it
+        config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"gnss": None},
+                                  live)
+        feed = AidingFeed(AidingTrack(6, config.aiding.gnss_latency_s, config.aiding.max_gap_s),
+                          iter([gnss_epochs(scenario, seed)]))
+    elif scenario.odometer is None:
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
                                      initial_q_b_n=initial)
     else:

@@ -3,11 +3,11 @@ from __future__ import annotations
 
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
+from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.service.aided_pipeline import build_pipeline
@@ -37,15 +37,19 @@ def parse_aids(specs: list[str] | None) -> dict[str, str]:
     return aids
 
 
-def open_aids(aids: dict[str, str], config: Config) -> tuple[dict[str, float | None], dict[str, AidingFeed]]:
-    """Each aiding log opened as a feed (latency, gaps from the configuration) and its noise σ key, if any."""
+def open_aids(aids: dict[str, str], config: Config
+              ) -> tuple[Config, dict[str, float | None], dict[str, AidingFeed]]:
+    """Each aiding log opened as a feed (latency, gaps from the configuration) and its noise σ key, if any;
+    the configuration with what the logs state of themselves (a GNSS log's antenna lever arm)."""
     noise, feeds = {}, {}
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
         noise[kind] = log.std("vel_std_mps")
         feeds[kind] = AidingFeed(AidingTrack(len(log.kind.columns) - 1, getattr(config.aiding, f"{kind}_latency_s"),
                                              config.aiding.max_gap_s), log.blocks())
-    return noise, feeds
+        if kind == "gnss" and any(key in log.header.values for key in LEVER_KEYS):
+            config = replace(config, aiding=replace(config.aiding, gnss_lever_m=tuple(log.lever_arm_m)))
+    return config, noise, feeds
 
 
 def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress: bool | None = None,
@@ -58,10 +62,10 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     """
     log = open_imu_log(imu_csv)
     h = log.header
-    noise, feeds = open_aids(aids or {}, config)
+    config, noise, feeds = open_aids(aids or {}, config)
     pipeline = build_pipeline(config, Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m), h.rate_hz, h.datasheet(),
                               noise)
-    aid_feed = feeds.get("odo")
+    aid_feed = feeds.get("odo") or feeds.get("gnss")
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
     samples = records = 0

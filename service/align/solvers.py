@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import cross, quat_normalize
+from .conventions import cross, dcm_from_quat, quat_normalize
 
 SOLVERS = ("opreq", "request", "qmethod", "centred")
 
@@ -152,6 +152,8 @@ class CentredWahba:
         self.S_br = np.zeros((3, 3))
         self.S_b = np.zeros(3)
         self.S_r = np.zeros(3)
+        self.S_rr = np.zeros((3, 3))   # Σ r rᵀ and Σ |b|²: the fit's residual and information (covariance)
+        self.S_bb = 0.0
         self.n_obs = 0
         self.rho = 1.0
         self.trace_P = float("nan")
@@ -167,6 +169,8 @@ class CentredWahba:
             self.S_br = self.S_br + outer[k]
             self.S_b = self.S_b + pairs[k, :3]
             self.S_r = self.S_r + pairs[k, 3:]
+            self.S_rr = self.S_rr + np.outer(pairs[k, 3:], pairs[k, 3:])
+            self.S_bb = self.S_bb + float(pairs[k, :3] @ pairs[k, :3])
             self.n_obs += 1
         self.rho = 1.0 / max(self.n_obs, 1)
 
@@ -175,6 +179,7 @@ class CentredWahba:
         """The solver holding the M pairs (M, 3) at once (vectorised sums; offline batches)."""
         solver = cls()
         solver.S_br, solver.S_b, solver.S_r = b.T @ r, b.sum(axis=0), r.sum(axis=0)
+        solver.S_rr, solver.S_bb = r.T @ r, float((b * b).sum())
         solver.n_obs = len(b)
         solver.rho = 1.0 / max(len(b), 1)
         return solver
@@ -195,6 +200,20 @@ class CentredWahba:
         if self.n_obs < 2:
             return np.array([1.0, 0.0, 0.0, 0.0])
         return quaternion_from_K(self.K)
+
+    def covariance(self) -> np.ndarray | None:
+        """Covariance (3, 3) rad² of the estimate's rotation error in the reference (n0) axes, from the
+        fit itself: residual variance per axis (white residuals assumed) times the inverse information
+        Σ [r̃×]ᵀ[r̃×] of the centred references; None before the fit has residual degrees of freedom."""
+        n = self.n_obs
+        if n < 4:
+            return None
+        C = dcm_from_quat(self.quaternion())          # C_b^n(0): b = C^T r + c
+        S_rr_c = self.S_rr - np.outer(self.S_r, self.S_r) / n
+        S_br_c = self.S_br - np.outer(self.S_b, self.S_r) / n
+        rss = (self.S_bb - float(self.S_b @ self.S_b) / n) - 2.0 * float(np.trace(C @ S_br_c)) + float(np.trace(S_rr_c))
+        information = np.trace(S_rr_c) * np.eye(3) - S_rr_c
+        return max(rss, 0.0) / (3 * n - 6) * np.linalg.inv(information)
 
 
 def make_solver(name: str, rho: float = 0.01) -> RecursiveK | CentredWahba:

@@ -1,21 +1,32 @@
-"""Simulated aiding sensors on a driving vehicle: odometer / DVL body velocity (seed 003).
+"""Simulated aiding sensors on a moving vehicle: odometer / DVL body velocity (seed 003), GNSS (seed 004).
 
-The sensor sits at lever arm l^b from the IMU (body axes, m) and measures that point's velocity
-over ground in body axes, V_P^b = V^b + ω_eb^b × l^b with ω_eb^b = ω_nb^b + C_n^b ω_en^n, times
-(1 + scale factor) per axis, plus white noise; written as the pinned body-velocity log.
+A sensor sits at lever arm l^b from the IMU (body axes, m) and measures that point P:
+odometer: its velocity over ground in body axes, V_P^b = V^b + ω_eb^b × l^b with
+ω_eb^b = ω_nb^b + C_n^b ω_en^n, times (1 + scale factor) per axis, plus white noise;
+GNSS: its position (P = IMU + C_b^n l^b) and ENU velocity V_P^n = V^n + C_b^n (ω_eb^b × l^b), plus
+white noise; each written as its pinned log.
 """
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
-from sinsalign.protocol.aiding_log import KINDS
+from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS
 from sinsalign.protocol.imu_log import write_header, write_rows
-from sinsalign.service.align.conventions import cross
-from sinsalign.service.align.earth import transport_rate_n
+from sinsalign.service.align.conventions import DEG, cross
+from sinsalign.service.align.earth import radii, transport_rate_n
 
 from .scenarios import Scenario
 from .vehicle import VehicleMotion
+
+
+def _omega_eb_b(motion: VehicleMotion, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(C_b^n, V^b, V^n, ω_eb^b) at times t."""
+    C_b_n, omega_nb_b = motion.attitude_profiles.attitude_and_rate(t)
+    _, V_b, V_n = motion.velocity_n(t)
+    lat, _, h = np.moveaxis(motion.position(t), -1, 0)
+    omega_en_n = transport_rate_n(V_n, lat, h)
+    return C_b_n, V_b, V_n, omega_nb_b + (np.swapaxes(C_b_n, -1, -2) @ omega_en_n[..., None])[..., 0]
 
 
 def body_velocity(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | None = None,
@@ -24,11 +35,7 @@ def body_velocity(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | No
     """Measured V_P^b (N, 3) in m/s at times t (N,); lever arm and scale factors default to zero."""
     lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
     scale = np.zeros(3) if scale is None else np.asarray(scale, dtype=float)
-    C_b_n, omega_nb_b = motion.attitude_profiles.attitude_and_rate(t)
-    _, V_b, V_n = motion.velocity_n(t)
-    lat, _, h = np.moveaxis(motion.position(t), -1, 0)
-    omega_en_n = transport_rate_n(V_n, lat, h)
-    omega_eb_b = omega_nb_b + (np.swapaxes(C_b_n, -1, -2) @ omega_en_n[..., None])[..., 0]
+    _, V_b, _, omega_eb_b = _omega_eb_b(motion, t)
     measured = (V_b + cross(omega_eb_b, np.broadcast_to(lever_b, V_b.shape))) * (1.0 + scale)
     if noise_std_mps:
         measured = measured + noise_std_mps * (rng or np.random.default_rng()).standard_normal(measured.shape)
@@ -69,3 +76,42 @@ def with_odometer_faults(epochs: np.ndarray, dropout_s: tuple[float, float] | No
         for k in np.random.default_rng([seed, 4]).choice(len(out) - 1, swapped, replace=False):
             out[[k, k + 1]] = out[[k + 1, k]]
     return out
+
+
+def gnss_fixes(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | None = None, vel_noise_mps: float = 0.0,
+               pos_noise_m: float = 0.0, rng: np.random.Generator | None = None) -> np.ndarray:
+    """Antenna fixes (N, 6) at times t (N,): lat_deg, lon_deg, h_m, vE, vN, vU (m/s)."""
+    lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
+    C_b_n, _, V_n, omega_eb_b = _omega_eb_b(motion, t)
+    lat, lon, h = np.moveaxis(motion.position(t), -1, 0)
+    offset_n = (C_b_n @ lever_b)
+    V_P = V_n + (C_b_n @ cross(omega_eb_b, np.broadcast_to(lever_b, V_n.shape))[..., None])[..., 0]
+    rng = rng or np.random.default_rng()
+    if pos_noise_m:
+        offset_n = offset_n + pos_noise_m * rng.standard_normal(offset_n.shape)
+    if vel_noise_mps:
+        V_P = V_P + vel_noise_mps * rng.standard_normal(V_P.shape)
+    R_M, R_N = radii(lat)
+    lat_P = lat + offset_n[:, 1] / (R_M + h)
+    lon_P = lon + offset_n[:, 0] / ((R_N + h) * np.cos(lat))
+    return np.column_stack((lat_P / DEG, lon_P / DEG, h + offset_n[:, 2], V_P))
+
+
+def gnss_epochs(scenario: Scenario, seed: int) -> np.ndarray:
+    """The scenario's GNSS fixes (N, 7): t, lat_deg, lon_deg, h_m, vE, vN, vU (seeded apart from the IMU)."""
+    g = scenario.gnss
+    t = np.arange(1, round(scenario.duration_s * g.rate_hz) + 1) / g.rate_hz
+    return np.column_stack((t, gnss_fixes(scenario.motion, t, np.asarray(g.lever_b), g.vel_noise_mps, g.pos_noise_m,
+                                          np.random.default_rng([seed, 4]))))
+
+
+def write_gnss_log(path: str | Path, epochs: np.ndarray, lever_b: np.ndarray | None = None,
+                   vel_std_mps: float | None = None, pos_std_m: float | None = None) -> Path:
+    """The pinned GNSS log: ``t,lat_deg,lon_deg,h_m,vE,vN,vU`` with lever-arm and noise keys."""
+    keys = {} if lever_b is None else dict(zip(LEVER_KEYS, (float(v) for v in lever_b), strict=True))
+    keys.update({k: v for k, v in (("vel_std_mps", vel_std_mps), ("pos_std_m", pos_std_m)) if v is not None})
+    path = Path(path)
+    with open(path, "w", encoding="utf-8") as f:
+        write_header(f, keys, KINDS["gnss"].columns)
+        write_rows(f, epochs)
+    return path

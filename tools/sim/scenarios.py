@@ -29,6 +29,17 @@ class OdometerSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class GnssSpec:
+    """A simulated GNSS receiver: fix rate, white noise of velocity (m/s per ENU axis) and position
+    (m per ENU axis), antenna lever arm from the IMU (body axes, m)."""
+
+    rate_hz: float = 50.0
+    vel_noise_mps: float = 0.1
+    pos_noise_m: float = 2.0
+    lever_b: tuple[float, float, float] = (1.0, 1.0, 1.0)
+
+
+@dataclass(frozen=True, slots=True)
 class Scenario:
     """Everything needed to simulate one run, except the seed."""
 
@@ -44,6 +55,7 @@ class Scenario:
     odometer: OdometerSpec | None = None
     random_bias_signs: bool = False
     """Each seed draws the sign of every axis's bias (a population of IMUs with biases of the stated size)."""
+    gnss: GnssSpec | None = None
 
     def for_seed(self, seed: int) -> Scenario:
         """The scenario as seed ``seed`` runs it (its own bias signs, if drawn)."""
@@ -57,8 +69,9 @@ class Scenario:
 
     def without_errors(self) -> Scenario:
         odometer = None if self.odometer is None else replace(self.odometer, noise_mps=0.0)
+        gnss = None if self.gnss is None else replace(self.gnss, vel_noise_mps=0.0, pos_noise_m=0.0)
         return replace(self, name=self.name + "-ideal", errors=ImuErrors(),
-                       grade=SensorGrade(1e-12, 1e-12, 1e-12, 1e-12), odometer=odometer)
+                       grade=SensorGrade(1e-12, 1e-12, 1e-12, 1e-12), odometer=odometer, gnss=gnss)
 
 
 def _swing(centre_deg: tuple[float, float, float], amp_deg: tuple[float, float, float],
@@ -86,9 +99,10 @@ def grade_of(errors: ImuErrors, rate_hz: float) -> SensorGrade:
 
 def _scenario(name: str, description: str, site: Site, motion: AngularMotion | VehicleMotion, errors: ImuErrors,
               rate_hz: float, duration_s: float, windows: tuple[tuple[float, float], ...],
-              odometer: OdometerSpec | None = None, random_bias_signs: bool = False) -> Scenario:
+              odometer: OdometerSpec | None = None, random_bias_signs: bool = False,
+              gnss: GnssSpec | None = None) -> Scenario:
     return Scenario(name, description, site, motion, errors, grade_of(errors, rate_hz), rate_hz, duration_s,
-                    windows, odometer, random_bias_signs)
+                    windows, odometer, random_bias_signs, gnss)
 
 
 SEED003_SITE = Site(45.68 * DEG, 126.63 * DEG, 150.0)
@@ -114,6 +128,20 @@ def _seed003(speed_mps: int) -> Scenario:
                      SEED003_SITE, seed003_drive(float(speed_mps)),
                      _errors(0.01, 100.0, gyro_noise_deg_h=0.001, acc_noise_ug=10.0), 100.0, SEED003_DURATION_S,
                      ((120.0, 120.0), (600.0, 600.0)), OdometerSpec(100.0, 0.03), random_bias_signs=True)
+
+
+SEED004_SITE = Site(30.0 * DEG, 114.0 * DEG, 3000.0)
+
+
+def seed004_flight() -> VehicleMotion:
+    """Seed 004's manoeuvring flight: 100 m/s (±15 m/s), heading 45° swinging ±30° (a 60-s period),
+    banked ±20° and pitched ±5° with it; the attitude and translation oscillate as in the paper's
+    Figures 1-2, so the horizontal acceleration keeps turning."""
+    heading = AngleProfile(45 * DEG, (Sinusoid(30 * DEG, 1 / 60), Sinusoid(5 * DEG, 0.11, 1.0)))
+    pitch = AngleProfile(0.0, (Sinusoid(5 * DEG, 1 / 40, 0.5), Sinusoid(1 * DEG, 0.23)))
+    roll = AngleProfile(0.0, (Sinusoid(20 * DEG, 1 / 60, np.pi / 2), Sinusoid(2 * DEG, 0.3, 2.0)))
+    speed = AngleProfile(100.0, (Sinusoid(15.0, 1 / 50, 0.3),))
+    return VehicleMotion(SEED004_SITE, 300.0, AngularMotion(heading, pitch, roll), speed)
 
 
 SCENARIOS: dict[str, Scenario] = {s.name: s for s in (
@@ -161,6 +189,13 @@ def _driven(base: Scenario) -> Scenario:
 
 SCENARIOS["seed000-swing-driven"] = _driven(SCENARIOS["seed000-swing"])
 SCENARIOS.update({s.name: s for s in (_seed003(20), _seed003(60), _seed003(80))})
+SCENARIOS["seed004"] = _scenario(
+    "seed004", "seed 004 in-flight with GNSS: L=30°, 100 Hz, 300 s of manoeuvres at 100 m/s; gyro 0.01°/h bias + "
+    "0.1°/h/√Hz, acc 50 µg bias + 500 µg/√Hz (bias signs drawn per seed and axis); GNSS 50 Hz, 0.1 m/s and 2 m "
+    "white noise, lever arm 1 m on every axis",
+    SEED004_SITE, seed004_flight(), replace(_errors(0.01, 50.0), gyro_arw_rad_rts=0.1 / 60.0 * DRH_TO_RRS,
+                                            acc_vrw_ms_rts=500.0 * UG_TO_MS2),
+    100.0, 300.0, ((10.0, 10.0), (60.0, 60.0), (300.0, 300.0)), random_bias_signs=True, gnss=GnssSpec())
 
 
 def get_scenario(name: str) -> Scenario:
