@@ -71,10 +71,12 @@ class AidingConfig:
     Odometer / DVL: latency of its time stamps, noise (a log's ``vel_std_mps`` overrides), lever arm
     from the IMU (body axes, m), and the Kalman stage's priors of its scale factor and lever arm
     (0: not estimated). GNSS: latency of its time stamps, antenna lever arm from the IMU (body axes,
-    m; a GNSS log's ``# lever_*_m`` keys override it). Coarse: the multistage window (s, bounded
-    store of window / obs interval rows), its levels, how often they are re-run, the solver of each
-    level. ``max_gap_s``: epochs further apart are not interpolated across. ``gate_chi2``: innovation
-    gate of the Kalman stage.
+    m; a GNSS log's ``# lever_*_m`` keys override it), the coarse stage's formula (``vif`` velocity
+    integration, ``pif`` position integration: positions only), the fixes' noise per ENU axis (a log's
+    ``vel_std_mps`` / ``pos_std_m`` override), and when the Kalman stage takes over (s of alignment).
+    Coarse: the multistage window (s, bounded store of window / obs interval rows), its levels, how
+    often they are re-run, the solver of each level. ``max_gap_s``: epochs further apart are not
+    interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
     ``handover_heading_sigma_deg``: the Kalman stage starts only from a window whose heading σ is at
     most this (a linear filter started several degrees off grows overconfident); a full window above it
     keeps the coarse stage, and says so.
@@ -90,6 +92,10 @@ class AidingConfig:
     odo_lever_sigma_m: float = 0.0
     gnss_latency_s: float = 0.0
     gnss_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
+    gnss_formula: str = "vif"
+    gnss_vel_std_mps: float = 0.1
+    gnss_pos_std_m: float = 2.0
+    gnss_handover_s: float = 30.0
     window_s: float = 120.0
     levels: int = 10
     relevel_interval_s: float = 1.0
@@ -102,6 +108,7 @@ class AidingConfig:
 
 
 HANDOVERS = ("sigma", "time")
+GNSS_FORMULAS = ("vif", "pif")
 ZENOH_MODES = ("", "peer", "client", "router")
 
 
@@ -209,6 +216,8 @@ def _check(config: Config) -> Config:
         raise ConfigError(f"aiding.inputs: {list(ad.inputs)} must name distinct kinds among {', '.join(AIDING_KINDS)}")
     if len(ad.gnss_lever_m) != 3:
         raise ConfigError(f"aiding.gnss_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.gnss_lever_m)}")
+    if ad.gnss_formula not in GNSS_FORMULAS:
+        raise ConfigError(f"aiding.gnss_formula: {ad.gnss_formula!r} is not one of {', '.join(GNSS_FORMULAS)}")
     if len(ad.odo_lever_m) != 3:
         raise ConfigError(f"aiding.odo_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.odo_lever_m)}")
     if config.disturbance.action not in DISTURBANCE_ACTIONS:
@@ -245,6 +254,9 @@ def _check(config: Config) -> Config:
         ("aiding.odo_latency_s", 0.0 <= ad.odo_latency_s <= 10.0, "must be in [0, 10]"),
         ("aiding.odo_std_mps", ad.odo_std_mps > 0.0, "must be > 0"),
         ("aiding.gnss_latency_s", 0.0 <= ad.gnss_latency_s <= 10.0, "must be in [0, 10]"),
+        ("aiding.gnss_vel_std_mps", ad.gnss_vel_std_mps > 0.0, "must be > 0"),
+        ("aiding.gnss_pos_std_m", ad.gnss_pos_std_m > 0.0, "must be > 0"),
+        ("aiding.gnss_handover_s", 0.0 <= ad.gnss_handover_s <= 3600.0, "must be in [0, 3600]"),
         ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
         ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),
         ("aiding.window_s", 1.0 <= ad.window_s <= 3600.0, "must be in [1, 3600]"),
