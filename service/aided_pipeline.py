@@ -10,22 +10,22 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..protocol.results import ResultRecord
-from .align.coarse import AttitudeSolution, InertialCoarseAlignment
-from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
+from .align.coarse import InertialCoarseAlignment
+from .align.conventions import DEG, dcm_from_quat
 from .align.earth import Site
 from .align.kalman import BodyVelocity, ErrorStateFilter
 from .align.solvers import make_solver
 from .align.velocity_aided import MultistageCoarseAlignment, VelocityAidedSource
 from .config import Config, ConfigError
 from .gnss_pipeline import GnssAidedPipeline
-from .pipeline import AlignmentPipeline, result_record
+from .kalman_stage import KalmanStagePipeline
+from .pipeline import AlignmentPipeline
 
 HANDOVER_VELOCITY_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one odometer reading: its σ is this many times the reading's."""
 
 
-class VelocityAidedPipeline(AlignmentPipeline):
+class VelocityAidedPipeline(KalmanStagePipeline):
     """Alignment of a moving base with body velocity V^b (3 aiding values per sample, m/s)."""
 
     aid_width = 3
@@ -102,17 +102,6 @@ class VelocityAidedPipeline(AlignmentPipeline):
             c = self.fine.counters["odo"]
             counters.update(odo_accepted=c.accepted, odo_rejected=c.rejected)
         return counters
-
-    def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
-                      coarse: InertialCoarseAlignment) -> ResultRecord:
-        if self.fine is None or not self.fine.active:
-            return super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)
-        threshold = self.config.alignment.converged_heading_sigma_deg
-        sigma = self.fine.sigma
-        solution = AttitudeSolution(t_sample, quat_from_dcm(self.fine.attitude(dcm_from_quat(q_b_b0))),
-                                    sigma.heading_deg, sigma.level_deg, coarse.solver.rho, coarse.solver.trace_P,
-                                    coarse.solver.n_obs)
-        return result_record(solution, t_epoch, "aligned" if sigma.heading_deg <= threshold else "fine", threshold)
 
 
 AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline,

@@ -26,6 +26,7 @@ Typical session:
 Live:
   sinsalign bench --speed 1                      # virtual IMU on a new pty; prints its name
   sinsalign serve --serial /dev/pts/N            # the daemon (Zenoh peer on tcp/127.0.0.1:7447)
+  sinsalign serve --serial /dev/pts/N --aid gnss # in flight: GNSS on <prefix>/<unit>/aid/gnss or serial frames
   sinsalign watch                                # live view; any number of them
 """
 
@@ -104,6 +105,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
         (out / "seed003.md").write_text(text + "\n")
         print(text)
         print(f"\nplot: {plot_seed003(runs, out / 'seed003_heading.png')}\ntable: {out / 'seed003.md'}")
+        return 0
+    if args.scenario == "seed004":
+        from sinsalign.tools.evaluate_gnss import plot_seed004, seed004_table
+        text, gnss_runs = seed004_table(seeds)
+        (out / "seed004.md").write_text(text + "\n")
+        print(text)
+        print(f"\nplot: {plot_seed004(gnss_runs, out / 'seed004_heading.png')}\ntable: {out / 'seed004.md'}")
         return 0
     runs = monte_carlo(args.scenario, seeds, _overrides(args))
     text = scenario_table(args.scenario, runs)
@@ -339,7 +347,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--aid", action="append", metavar="KIND=FILE",
                    help="an aiding log (pinned format, same time base): odo=ODO.csv selects in-motion alignment "
-                   "with odometer/DVL body velocity (multistage coarse window, then a Kalman stage); repeatable")
+                   "with odometer/DVL body velocity (multistage coarse window, then a Kalman stage), gnss=GNSS.csv "
+                   "in-flight alignment with GNSS fixes (antenna lever arm from the log's lever_*_m keys); "
+                   "one kind at a time for now")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_replay)
 
@@ -348,7 +358,9 @@ def build_parser() -> argparse.ArgumentParser:
                        "level errors relative to each run's physical limit, settling time and how honest σ is; "
                        "save OUT_DIR/SCENARIO_heading.png and OUT_DIR/SCENARIO.md.")
     p.add_argument("scenario", help="a scenario name (sinsalign sim --list), or seed003 for the in-motion table over "
-                   "20/60/80 m/s (traditional V^b vs multistage at 120 s, then the Kalman stage to 600 s)")
+                   "20/60/80 m/s (traditional V^b vs multistage at 120 s, then the Kalman stage to 600 s), or "
+                   "seed004 for the in-flight GNSS table (VIF vs PIF, lever arm compensated or ignored, and VIF "
+                   "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty)")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--solvers", action="store_true", help="also compare OPREQ, q-method and REQUEST gains")
@@ -371,16 +383,19 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Read IMU frames from a serial port (RS-422 adapter or a bench pty) and/or the "
                        "Zenoh key <prefix>/<unit>/imu, align, and publish <prefix>/<unit>/attitude (msgpack, every "
                        "output epoch) and <prefix>/<unit>/status (1 Hz, counters and health); hold the liveliness "
-                       "token <prefix>/<unit>/alive and answer <prefix>/<unit>/state. Stops cleanly on SIGINT or "
-                       "SIGTERM. Example: sinsalign serve --serial /dev/ttyUSB0 --baud 921600 --config bench.toml")
+                       "token <prefix>/<unit>/alive and answer <prefix>/<unit>/state. With --aid KIND, aiding epochs "
+                       "come from <prefix>/<unit>/aid/KIND and serial aiding frames, and each IMU sample waits for "
+                       "its aiding (aiding.max_wait_s). Stops cleanly on SIGINT or SIGTERM. Example: sinsalign serve "
+                       "--serial /dev/ttyUSB0 --baud 921600 --config bench.toml [--aid gnss]")
     p.add_argument("--serial", metavar="PATH", help="serial device, e.g. /dev/ttyUSB0 or a pty from sinsalign bench")
     p.add_argument("--baud", type=int, help="baud rate (default 921600; a pty ignores it)")
     p.add_argument("--zenoh-imu", action="store_true", help="also take IMU samples from <prefix>/<unit>/imu")
     p.add_argument("--record", metavar="CSV", help="record the decoded input as an IMU log (owner-only file)")
     p.add_argument("--period", type=float, metavar="S", help="attitude output period (default 1 s)")
     p.add_argument("--aid", action="append", metavar="KIND",
-                   help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames): odo selects "
-                   "in-motion alignment with odometer/DVL velocity (aiding.inputs); repeatable")
+                   help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames; aiding.inputs): "
+                   "odo selects in-motion alignment with odometer/DVL body velocity, gnss in-flight alignment with "
+                   "GNSS fixes (antenna lever arm aiding.gnss_lever_m); one kind at a time for now")
     _add_alignment_options(p)
     _add_zenoh_options(p)
     p.set_defaults(func=cmd_serve)

@@ -78,8 +78,8 @@ def test_bad_odometer_data_is_counted_rejected_and_survived():
     faults = {"dropout_s": (60.0, 70.0), "slip": (90.0, 0.5, 5.0), "swapped": 5}
     scenario = get_scenario("seed003-60")
     clean = run_once(scenario, 3, config_from_mapping({}))
-    bad = run_once(scenario, 3, config_from_mapping({}), odometer_faults=faults)
-    late_slip = run_once(scenario, 3, config_from_mapping({}), odometer_faults={"slip": (300.0, 0.5, 5.0)})
+    bad = run_once(scenario, 3, config_from_mapping({}), aid_faults=faults)
+    late_slip = run_once(scenario, 3, config_from_mapping({}), aid_faults={"slip": (300.0, 0.5, 5.0)})
     c = bad.counters
     assert c["out_of_order"] >= 5 and c["gaps"] == 1
     assert 95 <= c["odo_unaided_observations"] <= 105            # 10 s at 10 Hz

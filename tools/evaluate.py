@@ -22,7 +22,7 @@ from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 
-from .sim.aiding import gnss_epochs, odometer_epochs, with_odometer_faults
+from .sim.aiding import gnss_epochs, odometer_epochs, with_gnss_faults, with_odometer_faults
 from .sim.imu import simulate
 from .sim.scenarios import Scenario, get_scenario
 
@@ -56,13 +56,15 @@ def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
 
 
 def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: Sequence[float] | None = None,
-             live: bool = False, odometer_faults: dict | None = None) -> RunResult:
+             live: bool = False, aid_faults: dict | None = None, gnss_lever_stated: bool = True) -> RunResult:
     """Simulate one seed in memory and run the pipeline over it (the scenario's datasheet grade, as its log states).
 
     ``initial_error_deg`` (φ_E, φ_N, φ_U) starts the compass loops alone from the truth at t = 0 turned by that
-    misalignment, without the coarse stage (seed 001's compass-only runs). A scenario with an odometer runs the
-    velocity-aided pipeline, its readings going through the same aiding track as a log's;
-    ``odometer_faults`` are keyword arguments of :func:`with_odometer_faults`.
+    misalignment, without the coarse stage (seed 001's compass-only runs). A scenario with an odometer or GNSS
+    runs the aided pipeline, its readings going through the same aiding track as a log's; ``aid_faults`` are
+    keyword arguments of :func:`with_odometer_faults` or :func:`with_gnss_faults`, whichever aid it has.
+    ``gnss_lever_stated``: the GNSS log states the antenna's lever arm (it overrides ``aiding.gnss_lever_m``);
+    False leaves the configuration's (zero by default: the lever arm ignored).
     """
     scenario = scenario.for_seed(seed)
     initial = None
@@ -71,17 +73,18 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
     feed = None
     if scenario.gnss is not None:
-        # the antenna's lever arm as its log would state it
-        config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
+        if gnss_lever_stated:
+            # the antenna's lever arm as its log would state it
+            config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
+        epochs = with_gnss_faults(gnss_epochs(scenario, seed), **(aid_faults or {}))
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"gnss": None},
                                   live)
-        feed = AidingFeed(AidingTrack(6, config.aiding.gnss_latency_s, config.aiding.max_gap_s),
-                          iter([gnss_epochs(scenario, seed)]))
+        feed = AidingFeed(AidingTrack(6, config.aiding.gnss_latency_s, config.aiding.max_gap_s), iter([epochs]))
     elif scenario.odometer is None:
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
                                      initial_q_b_n=initial)
     else:
-        epochs = with_odometer_faults(odometer_epochs(scenario, seed), **(odometer_faults or {}), seed=seed)
+        epochs = with_odometer_faults(odometer_epochs(scenario, seed), **(aid_faults or {}), seed=seed)
         odo_std = scenario.odometer.noise_mps or None
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(),
                                   {"odo": odo_std}, live)
@@ -100,21 +103,23 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
                      run_limit_deg(scenario, t), pipeline.disturbances, counters)
 
 
-def _run_task(args: tuple[str, int, dict, Sequence[float] | None, dict | None, float | None]) -> RunResult:
-    name, seed, overrides, initial_error_deg, odometer_faults, duration_s = args
+def _run_task(args: tuple[str, int, dict, float | None, dict]) -> RunResult:
+    """One seed of :func:`monte_carlo`: scenario name, seed, overrides, duration (s), run_once keywords."""
+    name, seed, overrides, duration_s, options = args
     scenario = get_scenario(name)
     if duration_s is not None:
         scenario = replace(scenario, duration_s=duration_s)
-    return run_once(scenario, seed, config_from_mapping(overrides), initial_error_deg,
-                    odometer_faults=odometer_faults)
+    return run_once(scenario, seed, config_from_mapping(overrides), **options)
 
 
 def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
                 progress: bool = True, label: str = "", initial_error_deg: Sequence[float] | None = None,
-                odometer_faults: dict | None = None, duration_s: float | None = None) -> list[RunResult]:
+                aid_faults: dict | None = None, duration_s: float | None = None,
+                gnss_lever_stated: bool = True) -> list[RunResult]:
     """Run every seed (in parallel processes); results in seed order. See :func:`run_once`;
     ``duration_s`` cuts the scenario short."""
-    tasks = [(scenario_name, s, overrides or {}, initial_error_deg, odometer_faults, duration_s) for s in seeds]
+    options = {"initial_error_deg": initial_error_deg, "aid_faults": aid_faults, "gnss_lever_stated": gnss_lever_stated}
+    tasks = [(scenario_name, s, overrides or {}, duration_s, options) for s in seeds]
     workers = workers or min(len(tasks), os.cpu_count() or 1)
     results = []
     with Progress(disable=not progress, transient=True) as bar:

@@ -34,6 +34,7 @@ class HeadingStats:
 
 
 def stats_at(runs: Sequence[RunResult], t_s: float) -> HeadingStats:
+    """Heading and level error statistics over the runs at the output epoch nearest ``t_s`` (s)."""
     k = int(np.argmin(np.abs(runs[0].t - t_s)))
     phi = np.array([r.phi_deg[k] for r in runs])
     heading = phi[:, 2]
@@ -43,11 +44,12 @@ def stats_at(runs: Sequence[RunResult], t_s: float) -> HeadingStats:
 
 @dataclass(frozen=True, slots=True)
 class FineHonesty:
-    inside_2sigma: float        # share of epochs from 120 s on with |heading error| ≤ 2σ
+    inside_2sigma: float        # share of epochs from ``from_s`` on with |heading error| ≤ 2σ
     converged_beyond_3sigma: int
 
 
 def fine_honesty(runs: Sequence[RunResult], from_s: float = COARSE_AT_S) -> FineHonesty:
+    """How often |heading error| ≤ 2σ from ``from_s`` (s) on, and converged epochs there with |error| > 3σ."""
     inside, total, beyond = 0, 0, 0
     for r in runs:
         sel = r.t >= from_s - 1e-9
@@ -60,8 +62,9 @@ def fine_honesty(runs: Sequence[RunResult], from_s: float = COARSE_AT_S) -> Fine
 
 
 def seed003_table(seeds: Sequence[int], speeds: Sequence[int] = SPEEDS_MPS, progress: bool = True,
-                  odometer_faults: dict | None = None) -> tuple[str, dict[int, list[RunResult]]]:
-    """The seed-003 table in Markdown and the multistage runs per speed."""
+                  aid_faults: dict | None = None) -> tuple[str, dict[int, list[RunResult]]]:
+    """The seed-003 table in Markdown and the multistage runs per speed (``aid_faults``: odometer faults,
+    keyword arguments of :func:`~.sim.aiding.with_odometer_faults`)."""
     lines = [f"seed 003 in-motion alignment with odometer, {len(seeds)} seeds per speed (heading φ_U, deg)", "",
              "| speed | method | MAE @120 s | mean | STD | max | level MAE | MAE @600 s | max @600 s | in 2σ | "
              "converged > 3σ |",
@@ -70,9 +73,9 @@ def seed003_table(seeds: Sequence[int], speeds: Sequence[int] = SPEEDS_MPS, prog
     for v in speeds:
         name = f"seed003-{v}"
         trad = stats_at(monte_carlo(name, seeds, TRADITIONAL, progress=progress, label="traditional",
-                                    odometer_faults=odometer_faults, duration_s=COARSE_AT_S), COARSE_AT_S)
+                                    aid_faults=aid_faults, duration_s=COARSE_AT_S), COARSE_AT_S)
         runs = monte_carlo(name, seeds, {}, progress=progress, label="multistage + Kalman",
-                           odometer_faults=odometer_faults)
+                           aid_faults=aid_faults)
         multistage_runs[v] = runs
         coarse, fine, honest = stats_at(runs, COARSE_AT_S), stats_at(runs, FINE_AT_S), fine_honesty(runs)
         lines.append(f"| {v} m/s | traditional V^b | {trad.mae:.3f} | {trad.mean:+.3f} | {trad.std:.3f} | "

@@ -108,8 +108,11 @@ class InertialCoarseAlignment:
             self.unaided_observations += int(len(due) - usable.sum())
             due = due[usable]
         b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due], None if aid is None else aid[due])
-        mu = self.grade.observation_variance(elapsed_s[due], self._gravity, self.disturbance_velocity_mps)
-        return (due, *self.solver.prepare(b, r, mu))
+        return (due, *self.solver.prepare(b, r, self.observation_variance(elapsed_s[due])))
+
+    def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
+        """μ (N,) of the pairs taken at ``elapsed_s``: OPREQ's noise model of the unit vectors."""
+        return self.grade.observation_variance(elapsed_s, self._gravity, self.disturbance_velocity_mps)
 
     def scratch(self) -> InertialCoarseAlignment:
         """A copy to run ahead on and throw away: the state the updates replace is copied, nothing else.

@@ -45,6 +45,14 @@ def radii(lat: float | np.ndarray) -> tuple[float, float] | tuple[np.ndarray, np
     return (float(R_M), float(R_N)) if np.ndim(w) == 0 else (R_M, R_N)
 
 
+def ecef_from_geodetic(lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray) -> np.ndarray:
+    """WGS-84 Earth-fixed position (..., 3), m, of geodetic latitude, longitude (rad) and height (m)."""
+    sL = np.sin(lat)
+    R_N = A_M / np.sqrt(1.0 - E2 * sL**2)
+    horizontal = (R_N + height_m) * np.cos(lat)
+    return np.stack((horizontal * np.cos(lon), horizontal * np.sin(lon), (R_N * (1.0 - E2) + height_m) * sL), axis=-1)
+
+
 def earth_rate_n(lat: float | np.ndarray) -> np.ndarray:
     """ω_ie^n = [0, Ω cos L, Ω sin L] (rad/s, ENU), shape (..., 3) for latitudes of shape (...)."""
     lat = np.asarray(lat, dtype=float)

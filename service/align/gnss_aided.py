@@ -1,19 +1,28 @@
-"""In-flight alignment from GNSS velocity (seed 004, alignment-math.md §6): the VIF observation source.
+"""In-flight alignment from GNSS (seed 004, alignment-math.md §6): the VIF and PIF observation sources.
 
-Velocity integration formula, in the inertial frame n0 (the navigation frame at the first fix,
-frozen in inertial space): C_b0^n0 α_v(t) = β_v(t) with α_v = ∫ C_b^{b0} f^b dt (the core's α) and
-β_v = C_n^{n0} V^n(t) − V^n(0) + ∫ C_n^{n0} (ω_ie^n × V^n − g^n) dt.
+Both live in the inertial frame n0 (the navigation frame at the first fix's place, frozen in
+inertial space at the alignment start). GNSS gives the antenna's position and velocity;
+C_{n(t)}^{n0} = C_e^{n0} R_z(Ω t) C_n^e(L(t), λ(t)) follows from the fixes (the Earth turned by Ω t
+since the start). Integrals run from the first fix by the trapezoid rule over the observation
+epochs (:class:`RunningIntegral`); the GNSS values at an epoch are the track's linear
+interpolation between fixes (seed 004 eq. 26-28).
 
-GNSS gives the antenna's position and velocity. C_{n(t)}^{n0} = C_e^{n0} R_z(Ω t) C_n^e(L(t), λ(t))
-follows from the fixes (the Earth turned by Ω t since the start), and the integral is a trapezoid
-over the observation epochs (its integrand changes at the Earth and transport rates only; the
-stretch before the first epoch is a constant the centred solver absorbs).
+Velocity integration formula (VIF): C_b0^n0 α_v(t) = β_v(t) with α_v = ∫ C_b^{b0} f^b dt (the core's
+α) and β_v = C_n^{n0} V^n(t) − V^n(0) + ∫ C_n^{n0} (ω_ie^n × V^n − g^n) dt.
 
-Lever arm l^b (IMU to antenna, body axes), compensated exactly: V_ant^n = V^n + C_b^n (ω_eb^b × l^b),
-and C_n^{n0} C_b^n (ω_ib^b × l^b) = C_b0^n0 C_b^{b0} (ω_ib^b × l^b), a known b0-axes vector times
-the unknown attitude, so it moves to the observation side:
-b = α_v + C_b^{b0} (ω_ib^b × l^b),  r = C_n^{n0} V_ant^n + ∫ C_n^{n0} (ω_ie^n × V_ant^n − g^n) dt,
-each less its value at the first epoch. Left out: ω_ie × (C_b^n l) (7e-5 m/s per metre of lever).
+Position integration formula (PIF, positions only): integrating VIF once more and dividing by the
+span T = t − t_first,
+  C_b0^n0 (1/T) ∫ α_v dτ = (1/T) [J(t) + ω_ie^{n0} × ∫ J dτ + ∫∫ g up dσ dτ] − V^n(0),
+with J(t) = ∫ C_n^{n0} V^n dτ = ΔR − ω_ie^{n0} × ∫ ΔR dτ − T ω_ie^{n0} × R_0 exactly, R the inertial
+position C_e^{n0} R_z(Ω t) p^e of the fixes (dR/dt = C_n^{n0} V^n + ω_ie × R). V^n(0) is a constant
+common to every pair, which the centred solver absorbs: no velocity is needed. Position noise
+enters divided by T, so early pairs are weighted down (:meth:`observation_variance`).
+
+Lever arm l^b (IMU to antenna, body axes), compensated exactly in both (the seed leaves it out):
+the antenna is C_b0^n0 C_b^{b0} l^b ahead of the IMU, and its velocity C_b0^n0 C_b^{b0} (ω_ib^b × l^b)
+(ω_ie × (C l) left out: 7e-5 m/s per metre). Both are known b0-axes vectors times the unknown
+attitude, so they move to the observation side: VIF b = α_v + C_b^{b0}(ω_ib^b × l^b); PIF
+b = (∫ α_v dτ + C_b^{b0} l^b)/T. Each pair is taken less its value at the first fix.
 ω_ib^b at an epoch is the gyro's rate the pipeline appends to the GNSS columns.
 """
 from __future__ import annotations
@@ -21,7 +30,7 @@ from __future__ import annotations
 import numpy as np
 
 from .conventions import DEG, cross, dcm_from_quat
-from .earth import OMEGA_IE, Site, normal_gravity
+from .earth import OMEGA_IE, Site, ecef_from_geodetic, normal_gravity
 
 GNSS_COLUMNS = 6
 """lat_deg, lon_deg, h_m, vE, vN, vU of the antenna (the pinned GNSS log's columns after t)."""
@@ -45,20 +54,44 @@ def earth_turn(elapsed_s: np.ndarray) -> np.ndarray:
                      np.stack((zero, zero, one), axis=-1)), axis=-2)
 
 
-class GnssVelocitySource:
-    """Observation source of a vehicle with GNSS (VIF). Aid columns per epoch: the six GNSS values
-    (:data:`GNSS_COLUMNS`) then ω_ib^b (3, rad/s). ``lever_b``: IMU to antenna, body axes (m)."""
+class RunningIntegral:
+    """∫ y dt from the first epoch, by the trapezoid rule, over epochs that come in pieces.
+
+    cumsum adds left to right, so the bits are the same whether the epochs come in one call or many.
+    """
+
+    def __init__(self, width: int = 3) -> None:
+        self.value = np.zeros(width)
+        self._last: tuple[float, np.ndarray] | None = None   # (t, y) of the latest epoch
+
+    def extend(self, t: np.ndarray, y: np.ndarray) -> np.ndarray:
+        """The integral (N, width) at each of N new epochs t (N,) s with values y (N, width)."""
+        t_prev, y_prev = self._last if self._last is not None else (float(t[0]), y[0])
+        steps = np.diff(np.concatenate(([t_prev], t)))[:, None] * 0.5 * (np.concatenate((y_prev[None], y[:-1])) + y)
+        integral = np.cumsum(np.concatenate((self.value[None], steps)), axis=0)[1:]
+        self.value = integral[-1]
+        self._last = (float(t[-1]), y[-1])
+        return integral
+
+
+class GnssSource:
+    """What the GNSS sources share: the n0 frame of the first fix, C_{n(t)}^{n0} of the fixes, the lever
+    arm, and the pairs taken less their first value. Aid columns per epoch: the six GNSS values
+    (:data:`GNSS_COLUMNS`) then ω_ib^b (3, rad/s). ``lever_b``: IMU to antenna, body axes (m).
+    ``vel_std_mps``, ``pos_std_m``: the fixes' white noise per axis (the pairs' stated noise)."""
 
     aid_width = GNSS_COLUMNS + 3
 
-    def __init__(self, site: Site, lever_b: np.ndarray | None = None) -> None:
+    def __init__(self, site: Site, lever_b: np.ndarray | None = None, vel_std_mps: float = 0.1,
+                 pos_std_m: float = 2.0) -> None:
         self.site = site
         self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
+        self.vel_std_mps = vel_std_mps
+        self.pos_std_m = pos_std_m
         self._C_e_n0: np.ndarray | None = None
         self._omega_ie_n0 = np.zeros(3)
+        self.t_first: float | None = None
         self._first: tuple[np.ndarray, np.ndarray] | None = None    # (b, r) of the first epoch
-        self._integral = np.zeros(3)
-        self._last: tuple[float, np.ndarray | None] = (0.0, None)   # (elapsed, integrand) of the latest epoch
         self._fixes = (np.zeros(1), np.zeros(1), np.zeros(1))
         """(elapsed, lat, lon) of the latest call's epochs: where the navigation frame was between them."""
 
@@ -71,28 +104,25 @@ class GnssVelocitySource:
             raise ValueError("a GNSS source needs the fixes at every observation")
         if len(elapsed_s) == 0:
             return np.empty((0, 3)), np.empty((0, 3))
-        lat, lon, h = aid[:, 0] * DEG, aid[:, 1] * DEG, aid[:, 2]
+        lat, lon = aid[:, 0] * DEG, aid[:, 1] * DEG
         if self._C_e_n0 is None:
             self._C_e_n0 = C_n_e(lat[0], lon[0]).T
             self._omega_ie_n0 = self._C_e_n0 @ np.array([0.0, 0.0, OMEGA_IE])
-            self._last = (float(elapsed_s[0]), None)
+            self.t_first = float(elapsed_s[0])
         C_n_n0 = self._C_n_n0(elapsed_s, lat, lon)
-        V_n0 = (C_n_n0 @ aid[:, 3:6, None])[..., 0]
-        integrand = cross(self._omega_ie_n0, V_n0) + normal_gravity(lat, h)[:, None] * C_n_n0[:, :, 2]
-        t_prev, h_prev = self._last
-        h_prev = integrand[0] if h_prev is None else h_prev
-        steps = np.diff(np.concatenate(([t_prev], elapsed_s)))[:, None] * 0.5 * (
-            np.concatenate((h_prev[None], integrand[:-1])) + integrand)
-        # cumsum adds left to right: the same bits whether the epochs come in one call or many
-        integral = np.cumsum(np.concatenate((self._integral[None], steps)), axis=0)[1:]
-        self._integral = integral[-1]
-        self._last = (float(elapsed_s[-1]), integrand[-1])
         self._fixes = (elapsed_s, lat, lon)
-        lever_velocity = (dcm_from_quat(q_b_b0) @ cross(aid[:, 6:9], self.lever_b)[..., None])[..., 0]
-        b, r = alpha_b0 + lever_velocity, V_n0 + integral
+        b, r = self._pairs(elapsed_s, alpha_b0, dcm_from_quat(q_b_b0), aid, C_n_n0)
         if self._first is None:
             self._first = (b[0].copy(), r[0].copy())
         return b - self._first[0], r - self._first[1]
+
+    def _pairs(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, C_b_b0: np.ndarray, aid: np.ndarray,
+               C_n_n0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _gravity_up(self, aid: np.ndarray, C_n_n0: np.ndarray) -> np.ndarray:
+        """−C_n^{n0} g^n (N, 3): gravity's reaction, up at the fixes, in n0 axes."""
+        return normal_gravity(aid[:, 0] * DEG, aid[:, 2])[:, None] * C_n_n0[:, :, 2]
 
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:
         """C_{n(t)}^{n0} at ``elapsed_s``: the position interpolated between the latest observation epochs
@@ -102,3 +132,61 @@ class GnssVelocitySource:
         elapsed, lat, lon = self._fixes
         return self._C_n_n0(np.asarray(elapsed_s), np.interp(elapsed_s, elapsed, lat),
                             np.interp(elapsed_s, elapsed, lon))
+
+
+class GnssVelocitySource(GnssSource):
+    """VIF: b = α_v + C_b^{b0}(ω_ib^b × l^b), r = C_n^{n0} V_ant^n + ∫ C_n^{n0} (ω_ie^n × V_ant^n − g^n) dt."""
+
+    def __init__(self, site: Site, lever_b: np.ndarray | None = None, vel_std_mps: float = 0.1,
+                 pos_std_m: float = 2.0) -> None:
+        super().__init__(site, lever_b, vel_std_mps, pos_std_m)
+        self._integral = RunningIntegral()
+
+    def _pairs(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, C_b_b0: np.ndarray, aid: np.ndarray,
+               C_n_n0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        V_n0 = (C_n_n0 @ aid[:, 3:6, None])[..., 0]
+        integral = self._integral.extend(elapsed_s, cross(self._omega_ie_n0, V_n0) + self._gravity_up(aid, C_n_n0))
+        lever_velocity = (C_b_b0 @ cross(aid[:, 6:9], self.lever_b)[..., None])[..., 0]
+        return alpha_b0 + lever_velocity, V_n0 + integral
+
+    def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
+        """μ (N,) m²/s² per axis of the pairs: the velocity noise (equal weights)."""
+        return np.full(len(elapsed_s), self.vel_std_mps**2)
+
+
+class GnssPositionSource(GnssSource):
+    """PIF: b = (∫ α_v dτ + C_b^{b0} l^b − C_{b(first)}^{b0} l^b)/T, r = (J + ω_ie^{n0} × ∫ J dτ + ∫∫ g up)/T
+    (module docstring)."""
+
+    def __init__(self, site: Site, lever_b: np.ndarray | None = None, vel_std_mps: float = 0.1,
+                 pos_std_m: float = 2.0) -> None:
+        super().__init__(site, lever_b, vel_std_mps, pos_std_m)
+        self._R_first: np.ndarray | None = None
+        self._lever_first = np.zeros(3)
+        self._integrals = {name: RunningIntegral() for name in ("alpha", "dR", "J", "gravity", "gravity2")}
+
+    def _pairs(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, C_b_b0: np.ndarray, aid: np.ndarray,
+               C_n_n0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p_e = ecef_from_geodetic(aid[:, 0] * DEG, aid[:, 1] * DEG, aid[:, 2])
+        R = (self._C_e_n0 @ earth_turn(elapsed_s) @ p_e[..., None])[..., 0]
+        lever_b0 = C_b_b0 @ self.lever_b
+        if self._R_first is None:
+            self._R_first, self._lever_first = R[0].copy(), lever_b0[0].copy()
+        dR = R - self._R_first                       # the differences first: R is ~6.4e6 m
+        span = (elapsed_s - self.t_first)[:, None]
+        omega = self._omega_ie_n0
+        J = dR - cross(omega, self._integrals["dR"].extend(elapsed_s, dR)) - span * cross(omega, self._R_first)
+        gravity = self._integrals["gravity"].extend(elapsed_s, self._gravity_up(aid, C_n_n0))
+        r = J + cross(omega, self._integrals["J"].extend(elapsed_s, J)) + self._integrals["gravity2"].extend(
+            elapsed_s, gravity)
+        b = self._integrals["alpha"].extend(elapsed_s, alpha_b0) + lever_b0 - self._lever_first
+        # T = 0 at the first fix: the pair is (0, 0) in the limit, and its weight is zero
+        scale = np.divide(1.0, span, out=np.zeros_like(span), where=span > 0.0)
+        return b * scale, r * scale
+
+    def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
+        """μ (N,) m²/s² per axis of the pairs: position noise over the span, plus the velocity-grade noise the
+        integrated IMU errors reach (inf at the first fix: weight 0)."""
+        span = elapsed_s - (self.t_first if self.t_first is not None else elapsed_s)
+        with np.errstate(divide="ignore"):
+            return (self.pos_std_m / span) ** 2 + self.vel_std_mps**2

@@ -9,13 +9,14 @@ corrected) and the filter owning the constant C_b0^n0, velocity V^n (ENU, m/s), 
   C_n^{n0} ← C_n^{n0} exp([(ω_ie^n + ω_en^n) Δt ×]),  position by its rate.
 Here n0 is the local level frame at the start of the fine stage.
 
-Error states (ENU, ψ-angle form: Ĉ_b^n = (I − [φ×]) C_b^n, V̂ = V + δV):
-φ (3, rad), δV (3, m/s), gyro bias ε (3, rad/s), accelerometer bias ∇ (3, m/s²), then the
-extra states of each measurement (odometer scale factor and lever arm, later GNSS lever arm,
-transfer-alignment mounting). φ̇ = −ω_in^n × φ − C_b^n ε,  δV̇ = f^n × φ + C_b^n ∇ − (2ω_ie + ω_en) × δV.
+Error states (ENU, ψ-angle form: Ĉ_b^n = (I − [φ×]) C_b^n, V̂ = V + δV, p̂ = p + δp):
+φ (3, rad), δV (3, m/s), gyro bias ε (3, rad/s), accelerometer bias ∇ (3, m/s²), position δp
+(3, m, ENU), then the extra states of each measurement (odometer scale factor and lever arm, later
+transfer-alignment mounting). φ̇ = −ω_in^n × φ − C_b^n ε,  δV̇ = f^n × φ + C_b^n ∇ − (2ω_ie + ω_en) × δV,
+δṗ = δV (the curvature terms, δV/R and g/R δp, are below 1e-6 of these over an alignment).
 The biases and extra states are whole values, not fed back into the IMU data: their mean drives φ
-and δV at each prediction, and φ, δV are injected into the navigation after every prediction
-and update, so the filter's mean of φ and δV stays zero.
+and δV at each prediction, and φ, δV, δp are injected into the navigation after every prediction
+and update, so the filter's mean of them stays zero.
 
 A measurement (:class:`Measurement`) gives the innovation y − h(x̂), its Jacobian and noise; the
 filter gates it (χ² of the innovation against its covariance) and counts what it rejects.
@@ -29,11 +30,11 @@ import numpy as np
 
 from .compass import rotation_matrix
 from .conventions import DEG, cross, quat_from_dcm, rotvec_from_quat, skew
-from .earth import earth_rate_n, normal_gravity, position_rate, transport_rate_n
+from .earth import earth_rate_n, normal_gravity, position_rate, radii, transport_rate_n
 from .sensor_model import AttitudeSigma, SensorGrade
 
-PHI, DV, GYRO_BIAS, ACC_BIAS = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12)
-CORE_STATES = 12
+PHI, DV, GYRO_BIAS, ACC_BIAS, POS = slice(0, 3), slice(3, 6), slice(6, 9), slice(9, 12), slice(12, 15)
+CORE_STATES = 15
 ROTATION_NOISE_RAD_RTS = 1.2e-6
 """Attitude random walk (rad/√s, 0.004°/√h) added to the gyro's: what the linear model misses at 2-g
 turns (discretisation, second-order terms). Without it the seed-003 Monte Carlo at 60 and 80 m/s had
@@ -41,6 +42,20 @@ turns (discretisation, second-order terms). Without it the seed-003 Monte Carlo 
 with it none do, and the 600-s heading MAE goes from 0.013° to 0.033° (bound 0.1°)."""
 BIAS_INSTABILITY_FRACTION = 0.1
 """Random walk of each bias per hour, as a fraction of its 1-sigma value (slow, honest drift)."""
+
+
+def enu_to_geodetic_step(d_enu_m: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """(Δlat rad, Δlon rad, Δh m) of a small ENU offset (3,) m at ``position`` (lat rad, lon rad, h m)."""
+    R_M, R_N = radii(position[0])
+    h = position[2]
+    return np.array([d_enu_m[1] / (R_M + h), d_enu_m[0] / ((R_N + h) * np.cos(position[0])), d_enu_m[2]])
+
+
+def geodetic_to_enu_step(d_position: np.ndarray, position: np.ndarray) -> np.ndarray:
+    """ENU offset (3,) m of a small (Δlat rad, Δlon rad, Δh m) at ``position``: the inverse of the above."""
+    R_M, R_N = radii(position[0])
+    h = position[2]
+    return np.array([d_position[1] * (R_N + h) * np.cos(position[0]), d_position[0] * (R_M + h), d_position[2]])
 
 
 @dataclass(slots=True)
@@ -70,7 +85,8 @@ class Measurement(Protocol):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(innovation y − h(x̂) (m,), ∂h/∂core (m, 12), ∂h/∂extra (m, extra_states), R (m, m))."""
+        """(innovation y − h(x̂) (m,), −∂h/∂core (m, CORE_STATES), −∂h/∂extra (m, extra_states), R (m, m)):
+        the innovation is H x + noise for the error x = x̂ − x."""
         ...
 
 
@@ -116,7 +132,7 @@ class ErrorStateFilter:
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, V_n: np.ndarray, position: np.ndarray,
               tilt_sigma_rad: float, heading_sigma_rad: float, velocity_sigma_mps: float,
               velocity_from_attitude: bool = True,
-              extra: dict[str, tuple[np.ndarray, np.ndarray]] | None = None) -> None:
+              extra: dict[str, tuple[np.ndarray, np.ndarray]] | None = None, position_sigma_m: float = 1.0) -> None:
         """Hand-over from the coarse stage: attitude C_b^n (3, 3) of the body attitude C_b^{b0}, V^n,
         position, and their 1-sigma errors.
 
@@ -124,7 +140,7 @@ class ErrorStateFilter:
         its error holds the attitude's, δV = [V×] φ + noise: the covariance says so, or else the
         first body-velocity reading would "see" the heading error and collapse its σ at once.
         ``extra``: (values, 1-sigma) of a measurement's own states known from the coarse stage, in place
-        of the measurement's priors.
+        of the measurement's priors. ``position_sigma_m``: 1-sigma of the position per ENU axis.
         """
         self.C_n_n0 = np.eye(3)
         self.C_b0_n0 = C_b_n @ C_b_b0.T
@@ -133,7 +149,7 @@ class ErrorStateFilter:
         self.position = np.asarray(position, dtype=float).copy()
         g = self.grade
         sigma = np.concatenate(([tilt_sigma_rad] * 2, [heading_sigma_rad], [velocity_sigma_mps] * 3,
-                                [g.gyro_bias_rad_s] * 3, [g.acc_bias_ms2] * 3))
+                                [g.gyro_bias_rad_s] * 3, [g.acc_bias_ms2] * 3, [position_sigma_m] * 3))
         self.x = np.zeros(self.n_states)
         extra_sigma = []
         for name, m in self.measurements.items():
@@ -176,6 +192,7 @@ class ErrorStateFilter:
         F[DV, PHI] = skew(dv_f_n / dt_s)
         F[DV, DV] = -skew(2.0 * omega_ie + omega_en)
         F[DV, ACC_BIAS] = C_b_n
+        F[POS, DV] = np.eye(3)
         Fdt = F * dt_s
         Phi = np.eye(self.n_states) + Fdt + 0.5 * Fdt @ Fdt
         self.x = Phi @ self.x
@@ -194,12 +211,14 @@ class ErrorStateFilter:
         return np.diag(q * dt_s)
 
     def _inject(self) -> None:
-        """Move φ and δV into the navigation (C_b^n ← exp([φ×]) Ĉ_b^n, V ← V̂ − δV); zero them."""
+        """Move φ, δV and δp into the navigation (C_b^n ← exp([φ×]) Ĉ_b^n, V ← V̂ − δV, p ← p̂ − δp); zero them."""
         phi = self.x[PHI]
         self.C_b0_n0 = self.C_n_n0 @ rotation_matrix(phi) @ self.C_n_n0.T @ self.C_b0_n0
         self.V_n = self.V_n - self.x[DV]
+        self.position = self.position - enu_to_geodetic_step(self.x[POS], self.position)
         self.x[PHI] = 0.0
         self.x[DV] = 0.0
+        self.x[POS] = 0.0
 
     def navigation(self) -> Navigation:
         return Navigation(self.C_n_n0.T @ self.C_b0_n0 @ self._C_b_b0, self.V_n, self.position, self.omega_eb_b)
@@ -278,3 +297,54 @@ class BodyVelocity:
         if self.lever:
             H_extra[:, int(self.scale):] = skew(nav.omega_eb_b)
         return value - h, H_core, H_extra, np.eye(3) * self.std_mps**2
+
+
+class GnssVelocity:
+    """GNSS velocity of an antenna at lever arm l^b: h = V^n + C_b^n (ω_eb^b × l^b), ENU m/s.
+
+    The value given to :meth:`ErrorStateFilter.update` is (vE, vN, vU, ω_ib^b (3) rad/s): the fix
+    and the gyro rate at its time. std_mps : white noise per axis.
+    """
+
+    name = "gnss_vel"
+    extra_states = 0
+
+    def __init__(self, std_mps: float, lever_b: np.ndarray | None = None) -> None:
+        self.std_mps = std_mps
+        self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
+
+    def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0), np.zeros(0)
+
+    def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        omega_eb_b = value[3:6] - nav.C_b_n.T @ earth_rate_n(nav.position[0])
+        lever_velocity = nav.C_b_n @ cross(omega_eb_b, self.lever_b)
+        H_core = np.zeros((3, CORE_STATES))
+        H_core[:, PHI] = -skew(lever_velocity)
+        H_core[:, DV] = -np.eye(3)
+        return value[:3] - nav.V_n - lever_velocity, H_core, np.zeros((3, 0)), np.eye(3) * self.std_mps**2
+
+
+class GnssPosition:
+    """GNSS position of an antenna at lever arm l^b: h = p + C_b^n l^b, as an ENU offset (m) from the
+    navigation's position. The value is (lat rad, lon rad, h m) of the fix. std_m : white noise per axis."""
+
+    name = "gnss_pos"
+    extra_states = 0
+
+    def __init__(self, std_m: float, lever_b: np.ndarray | None = None) -> None:
+        self.std_m = std_m
+        self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
+
+    def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(0), np.zeros(0)
+
+    def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        lever_n = nav.C_b_n @ self.lever_b
+        H_core = np.zeros((3, CORE_STATES))
+        H_core[:, PHI] = -skew(lever_n)
+        H_core[:, POS] = -np.eye(3)
+        innovation = geodetic_to_enu_step(value[:3] - nav.position, nav.position) - lever_n
+        return innovation, H_core, np.zeros((3, 0)), np.eye(3) * self.std_m**2

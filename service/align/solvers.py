@@ -140,53 +140,71 @@ class RecursiveK:
 class CentredWahba:
     """Least squares for b_k = A r_k + c with a free constant c, from O(1) running sums.
 
-    B = Σ b rᵀ − (Σ b)(Σ r)ᵀ / n over the unnormalised pairs (equal weights); the attitude is
-    the top eigenvector of B's Davenport matrix, like the other solvers. Same interface as
+    B = Σ w b rᵀ − (Σ w b)(Σ w r)ᵀ / Σ w over the unnormalised pairs; the attitude is the top
+    eigenvector of B's Davenport matrix, like the other solvers. Same interface as
     :class:`RecursiveK` (``prepare``/``fold``/``quaternion``), so the coarse stage and the
     pipeline use either. ``rho`` and ``trace_P`` are reported as 1/n and NaN.
+
+    weighted : weight each pair by 1/μ, μ the variance ``prepare`` is given (else equal weights,
+        μ ignored). A weighted fit's residual variance is then in units of the stated noise.
+    gate_chi2 : screen each pair before it is added (GNSS glitches): a pair whose residual against
+        the fit so far, |e|²/μ over the fit's residual variance per axis (at least 1: never tighter
+        than the stated noise), exceeds this is left out and counted in ``rejected``. Active from
+        :data:`GATE_MIN_PAIRS` pairs on (None: no screening).
     """
 
     solver = "centred"
 
-    def __init__(self) -> None:
+    def __init__(self, weighted: bool = False, gate_chi2: float | None = None) -> None:
+        if gate_chi2 is not None and not weighted:
+            raise ValueError("screening pairs needs their stated noise: weighted=True")
+        self.weighted = weighted
+        self.gate_chi2 = gate_chi2
+        self.S_w = 0.0
         self.S_br = np.zeros((3, 3))
         self.S_b = np.zeros(3)
         self.S_r = np.zeros(3)
-        self.S_rr = np.zeros((3, 3))   # Σ r rᵀ and Σ |b|²: the fit's residual and information (covariance)
+        self.S_rr = np.zeros((3, 3))   # Σ w r rᵀ and Σ w |b|²: the fit's residual and information (covariance)
         self.S_bb = 0.0
         self.n_obs = 0
+        self.rejected = 0
         self.rho = 1.0
         self.trace_P = float("nan")
 
-    @staticmethod
-    def prepare(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(b rᵀ (M, 3, 3), [b, r] (M, 6)) of M pairs, for :meth:`fold`; ``mu`` is not used."""
-        return b[:, :, None] * r[:, None, :], np.concatenate((b, r), axis=1)
+    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(w b rᵀ (M, 3, 3), [b, r, w] (M, 7)) of M pairs, for :meth:`fold`."""
+        w = 1.0 / np.asarray(mu, dtype=float) if self.weighted else np.ones(len(b))
+        return w[:, None, None] * b[:, :, None] * r[:, None, :], np.column_stack((b, r, w))
 
     def fold(self, outer: np.ndarray, pairs: np.ndarray) -> None:
         """Add prepared pairs to the sums, one after the other (same bits however grouped)."""
         for k in range(len(pairs)):
+            b, r, w = pairs[k, :3], pairs[k, 3:6], pairs[k, 6]
+            if self.gate_chi2 is not None and self.n_obs >= GATE_MIN_PAIRS and not self._consistent(b, r, w):
+                self.rejected += 1
+                continue
+            self.S_w = self.S_w + w
             self.S_br = self.S_br + outer[k]
-            self.S_b = self.S_b + pairs[k, :3]
-            self.S_r = self.S_r + pairs[k, 3:]
-            self.S_rr = self.S_rr + np.outer(pairs[k, 3:], pairs[k, 3:])
-            self.S_bb = self.S_bb + float(pairs[k, :3] @ pairs[k, :3])
+            self.S_b = self.S_b + w * b
+            self.S_r = self.S_r + w * r
+            self.S_rr = self.S_rr + w * np.outer(r, r)
+            self.S_bb = self.S_bb + w * float(b @ b)
             self.n_obs += 1
         self.rho = 1.0 / max(self.n_obs, 1)
 
     @classmethod
     def from_pairs(cls, b: np.ndarray, r: np.ndarray) -> CentredWahba:
-        """The solver holding the M pairs (M, 3) at once (vectorised sums; offline batches)."""
+        """The solver holding the M pairs (M, 3) at once, equal weights (vectorised sums; offline batches)."""
         solver = cls()
         solver.S_br, solver.S_b, solver.S_r = b.T @ r, b.sum(axis=0), r.sum(axis=0)
         solver.S_rr, solver.S_bb = r.T @ r, float((b * b).sum())
-        solver.n_obs = len(b)
+        solver.n_obs, solver.S_w = len(b), float(len(b))
         solver.rho = 1.0 / max(len(b), 1)
         return solver
 
     @property
     def K(self) -> np.ndarray:
-        B = self.S_br - np.outer(self.S_b, self.S_r) / max(self.n_obs, 1)
+        B = self.S_br - np.outer(self.S_b, self.S_r) / max(self.S_w, 1.0)
         sigma = np.trace(B)
         K = np.empty((4, 4))
         K[:3, :3] = B + B.T - sigma * np.eye(3)
@@ -201,19 +219,37 @@ class CentredWahba:
             return np.array([1.0, 0.0, 0.0, 0.0])
         return quaternion_from_K(self.K)
 
-    def covariance(self) -> np.ndarray | None:
-        """Covariance (3, 3) rad² of the estimate's rotation error in the reference (n0) axes, from the
-        fit itself: residual variance per axis (white residuals assumed) times the inverse information
-        Σ [r̃×]ᵀ[r̃×] of the centred references; None before the fit has residual degrees of freedom."""
+    def _fit(self) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """(C_b^n(0), centred Σ w r rᵀ, residual variance per axis), None before 4 pairs."""
         n = self.n_obs
         if n < 4:
             return None
         C = dcm_from_quat(self.quaternion())          # C_b^n(0): b = C^T r + c
-        S_rr_c = self.S_rr - np.outer(self.S_r, self.S_r) / n
-        S_br_c = self.S_br - np.outer(self.S_b, self.S_r) / n
-        rss = (self.S_bb - float(self.S_b @ self.S_b) / n) - 2.0 * float(np.trace(C @ S_br_c)) + float(np.trace(S_rr_c))
-        information = np.trace(S_rr_c) * np.eye(3) - S_rr_c
-        return max(rss, 0.0) / (3 * n - 6) * np.linalg.inv(information)
+        S_rr_c = self.S_rr - np.outer(self.S_r, self.S_r) / self.S_w
+        S_br_c = self.S_br - np.outer(self.S_b, self.S_r) / self.S_w
+        rss = (self.S_bb - float(self.S_b @ self.S_b) / self.S_w) - 2.0 * float(np.trace(C @ S_br_c)) + float(
+            np.trace(S_rr_c))
+        return C, S_rr_c, max(rss, 0.0) / (3 * n - 6)
+
+    def covariance(self) -> np.ndarray | None:
+        """Covariance (3, 3) rad² of the estimate's rotation error in the reference (n0) axes, from the
+        fit itself: residual variance per axis (white residuals assumed) times the inverse information
+        Σ w [r̃×]ᵀ[r̃×] of the centred references; None before the fit has residual degrees of freedom."""
+        fit = self._fit()
+        if fit is None:
+            return None
+        _, S_rr_c, variance = fit
+        return variance * np.linalg.inv(np.trace(S_rr_c) * np.eye(3) - S_rr_c)
+
+    def _consistent(self, b: np.ndarray, r: np.ndarray, w: float) -> bool:
+        C, _, variance = self._fit()
+        c = (self.S_b - C.T @ self.S_r) / self.S_w
+        e = b - C.T @ r - c
+        return w * float(e @ e) <= self.gate_chi2 * max(variance, 1.0)
+
+
+GATE_MIN_PAIRS = 20
+"""Pairs the fit needs before it screens new ones (its residual variance means little before)."""
 
 
 def make_solver(name: str, rho: float = 0.01) -> RecursiveK | CentredWahba:

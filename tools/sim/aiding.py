@@ -8,6 +8,7 @@ white noise; each written as its pinned log.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -103,6 +104,27 @@ def gnss_epochs(scenario: Scenario, seed: int) -> np.ndarray:
     t = np.arange(1, round(scenario.duration_s * g.rate_hz) + 1) / g.rate_hz
     return np.column_stack((t, gnss_fixes(scenario.motion, t, np.asarray(g.lever_b), g.vel_noise_mps, g.pos_noise_m,
                                           np.random.default_rng([seed, 4]))))
+
+
+GnssGlitch = tuple[float, float, float, float]
+"""A GNSS glitch: (start_s, length_s, east velocity jump m/s, north position jump m)."""
+
+
+def with_gnss_faults(epochs: np.ndarray, outage_s: tuple[float, float] | None = None,
+                     glitches: Sequence[GnssGlitch] = ()) -> np.ndarray:
+    """GNSS epochs (N, 7: t, lat_deg, lon_deg, h_m, vE, vN, vU) with faults: no epochs inside ``outage_s``
+    (start, end in s); each glitch ``(start_s, length_s, dvel_mps, dpos_m)`` adds ``dvel_mps`` (m/s) to the
+    east velocity and moves the position ``dpos_m`` (m) north (in degrees of latitude with the meridian
+    radius at the fix) in the fixes within [start_s, start_s + length_s)."""
+    out = epochs.copy()
+    for start, length, dvel, dpos in glitches:
+        sel = (out[:, 0] >= start) & (out[:, 0] < start + length)
+        R_M, _ = radii(out[sel, 1] * DEG)
+        out[sel, 1] += dpos / (R_M + out[sel, 3]) / DEG
+        out[sel, 4] += dvel
+    if outage_s is not None:
+        out = out[(out[:, 0] < outage_s[0]) | (out[:, 0] >= outage_s[1])]
+    return out
 
 
 def write_gnss_log(path: str | Path, epochs: np.ndarray, lever_b: np.ndarray | None = None,

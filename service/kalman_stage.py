@@ -1,0 +1,30 @@
+"""What the aided pipelines whose fine stage is the error-state Kalman filter share: its records.
+
+The odometer (service/aided_pipeline.py) and GNSS (service/gnss_pipeline.py) pipelines hand over
+from their coarse stage to :class:`~service.align.kalman.ErrorStateFilter`; from then on the
+attitude and its σ come from the filter, and ``aligned`` means its heading σ is at or below
+``alignment.converged_heading_sigma_deg``.
+"""
+from __future__ import annotations
+
+from ..protocol.results import ResultRecord
+from .align.coarse import AttitudeSolution, InertialCoarseAlignment
+from .align.conventions import dcm_from_quat, quat_from_dcm
+from .align.kalman import ErrorStateFilter
+from .pipeline import AlignmentPipeline, result_record
+
+
+class KalmanStagePipeline(AlignmentPipeline):
+    """An :class:`AlignmentPipeline` whose fine stage is an :class:`ErrorStateFilter`."""
+
+    fine: ErrorStateFilter | None
+
+    def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0, coarse: InertialCoarseAlignment) -> ResultRecord:
+        if self.fine is None or not self.fine.active:
+            return super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)
+        threshold = self.config.alignment.converged_heading_sigma_deg
+        sigma = self.fine.sigma
+        solution = AttitudeSolution(t_sample, quat_from_dcm(self.fine.attitude(dcm_from_quat(q_b_b0))),
+                                    sigma.heading_deg, sigma.level_deg, coarse.solver.rho, coarse.solver.trace_P,
+                                    coarse.solver.n_obs)
+        return result_record(solution, t_epoch, "aligned" if sigma.heading_deg <= threshold else "fine", threshold)
