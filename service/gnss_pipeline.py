@@ -25,10 +25,6 @@ from .align.solvers import CentredWahba
 from .config import Config
 from .kalman_stage import KalmanStagePipeline
 
-VIF_SIGMA_FACTOR = 1.5
-"""The fit's σ assumes white residuals; the IMU noise integrated into α is a random walk, so they are
-not. Seed-004 Monte Carlo (10 seeds, 10-300 s): |error|/σ had median 0.93 and 90th percentile 2.46
-(84 % inside 2σ); this factor brings it to the honest side (README, "In flight with GNSS")."""
 PAIR_GATE_CHI2 = 36.0
 """The coarse stage's screen of each pair: |e|²/μ over the fit's residual variance (6σ in 3-D, a false alarm
 in ~1e-6 pairs; at the Kalman gate's 16.3 the seed-004 runs lost 0-2 good pairs in 60 s). A 20-m/s glitch
@@ -52,8 +48,9 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
         if covariance is None:
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
         heading, level = np.sqrt(covariance[2, 2]), np.sqrt(0.5 * (covariance[0, 0] + covariance[1, 1]))
-        return (min(float(VIF_SIGMA_FACTOR * heading / DEG), SIGMA_UNKNOWN_DEG),
-                min(float(VIF_SIGMA_FACTOR * level / DEG), SIGMA_UNKNOWN_DEG))
+        factor = self.source.sigma_factor
+        return (min(float(factor * heading / DEG), SIGMA_UNKNOWN_DEG),
+                min(float(factor * level / DEG), SIGMA_UNKNOWN_DEG))
 
 
 class GnssAidedPipeline(KalmanStagePipeline):

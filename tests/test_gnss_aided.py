@@ -1,9 +1,10 @@
-"""In-flight alignment from GNSS velocity (seed 004, VIF) through the streaming pipeline.
+"""In-flight alignment from GNSS (seed 004) through the streaming pipeline.
 
 GIVEN the seed-004 manoeuvring flight (100 m/s, swinging heading, bank and pitch; GNSS antenna
-1 m from the IMU on every axis), WHEN the GNSS-aided pipeline runs its VIF coarse stage, THEN with
-exact sensors the heading is exact from 10 s on only because the lever arm is compensated, the
-noisy run meets the issue's bounds, a stream in pieces gives the bits of one chunk, and a log
+1 m from the IMU on every axis), WHEN the GNSS-aided pipeline runs its VIF (or PIF) coarse stage and
+then its Kalman stage, THEN with exact sensors the heading is exact from 10 s on only because the
+lever arm is compensated, the noisy run meets the issue's bounds, glitches are screened out and an
+outage is bridged with σ growing, a stream in pieces gives the bits of one chunk, and a log
 replays with the lever arm it states.
 """
 import json
@@ -17,25 +18,28 @@ from sinsalign.service.align.earth import C_n_n0_fixed
 from sinsalign.service.align.gnss_aided import C_n_e, earth_turn
 from sinsalign.service.config import config_from_mapping
 from sinsalign.tools.replay import replay
-from sinsalign.tools.sim.aiding import gnss_epochs
+from sinsalign.tools.sim.aiding import gnss_epochs, with_gnss_faults
 from sinsalign.tools.sim.files import write_simulation
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
 
-def run_gnss(scenario, seed=1, lever=True, piece=None):
-    """Records of the GNSS pipeline over a simulated seed (lever arm configured or not)."""
+def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None, counters=None):
+    """Records of the GNSS pipeline over a simulated seed (lever arm configured or not, other ``aiding``
+    keys, GNSS ``faults`` of :func:`with_gnss_faults`); ``counters`` (a dict) receives the pipeline's."""
     scenario = scenario.for_seed(seed)
     lever_m = list(scenario.gnss.lever_b) if lever else [0.0, 0.0, 0.0]
-    pipeline = build_pipeline(config_from_mapping({"aiding": {"gnss_lever_m": lever_m}}), scenario.site,
-                              scenario.rate_hz, scenario.grade.datasheet(), {"gnss": None})
-    feed = AidingFeed(AidingTrack(6), iter([gnss_epochs(scenario, seed)]))
+    pipeline = build_pipeline(config_from_mapping({"aiding": {"gnss_lever_m": lever_m, **(aiding or {})}}),
+                              scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"gnss": None})
+    feed = AidingFeed(AidingTrack(6), iter([with_gnss_faults(gnss_epochs(scenario, seed), **(faults or {}))]))
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
         step = piece or len(chunk.t)
         for k in range(0, len(chunk.t), step):
             s = slice(k, k + step)
             records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.values_at(chunk.t[s]))
+    if counters is not None:
+        counters.update(pipeline.aiding_counters())
     return records
 
 
@@ -57,6 +61,49 @@ def test_exact_sensors_give_the_exact_heading_from_10_s_with_the_lever_arm_compe
     late = t >= 10.0
     assert np.abs(compensated[late]).max() < 0.001            # the issue: < 0.001° from 10 s, lever present
     assert np.abs(ignored[late, 2]).max() > 0.01             # what a 1-m lever arm costs uncompensated
+
+
+def test_exact_sensors_stay_exact_through_the_kalman_stage_with_velocity_and_position_fixes():
+    scenario = replace(get_scenario("seed004-ideal"), duration_s=40.0)
+    records = run_gnss(scenario, aiding={"gnss_handover_s": 15.0})
+    t, phi = errors_deg(scenario, records)
+    late = [r.phase for r, t_s in zip(records, t, strict=True) if t_s > 15.0]
+    assert late == ["aligned"] * len(late) and records[0].phase == "coarse"          # the filter from 15 s
+    assert np.abs(phi[t >= 10.0]).max() < 0.001
+
+
+def test_the_position_formula_aligns_from_positions_alone_and_needs_the_lever_arm_too():
+    scenario = replace(get_scenario("seed004-ideal"), duration_s=40.0)
+    pif = {"gnss_formula": "pif", "gnss_handover_s": 3600.0}
+    t, compensated = errors_deg(scenario, run_gnss(scenario, aiding=pif))
+    _, ignored = errors_deg(scenario, run_gnss(scenario, lever=False, aiding=pif))
+    # the trapezoid over 10-Hz epochs of a double integral: 0.005° at 10 s, 2e-4° at 30 s (exact sensors)
+    assert np.abs(compensated[t >= 10.0]).max() < 0.01 and np.abs(compensated[t >= 30.0]).max() < 0.001
+    assert np.abs(ignored[t >= 30.0, 2]).max() > 0.01
+
+
+def test_glitches_are_screened_out_and_an_outage_is_bridged_with_sigma_growing():
+    """A 20-m/s velocity glitch in the coarse stage, a 50-m position glitch in the Kalman stage, a 20-s outage."""
+    scenario = replace(get_scenario("seed004"), duration_s=120.0)
+    faults = {"glitches": ((20.0, 1.0, 20.0, 0.0), (50.0, 1.0, 0.0, 50.0)), "outage_s": (70.0, 90.0)}
+    counters, clean_counters = {}, {}
+    records = run_gnss(scenario, seed=3, faults=faults, counters=counters)
+    clean = run_gnss(scenario, seed=3, counters=clean_counters)
+    t, phi = errors_deg(scenario.for_seed(3), records)
+    _, phi_clean = errors_deg(scenario.for_seed(3), clean)
+    sigma = np.array([r.heading_sigma_deg for r in records])
+    at = {s: int(np.argmin(np.abs(t - s))) for s in (19.0, 25.0, 70.0, 90.0, 120.0)}
+    # each glitch fix seen at a 10-Hz step is left out and counted: 10 in the coarse stage, 10 by the filter
+    assert counters["gnss_coarse_rejected"] - clean_counters["gnss_coarse_rejected"] >= 10
+    assert counters["gnss_pos_rejected"] >= 10
+    assert counters["gnss_vel_rejected"] - clean_counters["gnss_vel_rejected"] <= 2
+    assert counters["gnss_vel_accepted"] < clean_counters["gnss_vel_accepted"] - 190   # 20 s without fixes
+    # the glitch did not enter the fit: 5 s later the heading is where the clean run's is
+    assert abs(phi[at[25.0], 2] - phi_clean[at[25.0], 2]) < 0.25 * sigma[at[25.0]]
+    assert sigma[at[90.0]] > sigma[at[70.0]]                                         # σ grows in the outage
+    assert abs(phi[at[120.0], 2]) <= max(2.0 * abs(phi[at[70.0], 2]), sigma[at[120.0]])
+    converged = np.array([r.converged for r in records])
+    assert not (converged & (np.abs(phi[:, 2]) > 3.0 * sigma)).any()
 
 
 def test_noisy_flight_meets_the_issue_bounds_at_10_and_60_s():
@@ -95,3 +142,35 @@ def test_heading_sigma_is_honest_over_seeds_neither_optimistic_nor_padded():
     ratios = np.concatenate(ratios)
     assert np.mean(ratios <= 2.0) >= 0.9                     # the issue: ≥ 90 % inside 2σ from 10 s on
     assert np.median(ratios) > 0.3                           # and σ not padded into meaninglessness
+
+
+def test_gnss_measurement_jacobians_match_the_models_to_first_order():
+    """innovation(x̂) = H x for a small error x = (φ, δV, δp): the filter's linearisation of both fixes."""
+    from sinsalign.service.align.compass import rotation_matrix
+    from sinsalign.service.align.conventions import quat_from_rotvec
+    from sinsalign.service.align.earth import earth_rate_n
+    from sinsalign.service.align.kalman import (
+        CORE_STATES,
+        DV,
+        PHI,
+        POS,
+        GnssPosition,
+        GnssVelocity,
+        Navigation,
+        enu_to_geodetic_step,
+    )
+    C = dcm_from_quat(quat_from_rotvec(np.array([0.2, -0.3, 0.8])))
+    V, position, lever = np.array([70.0, 60.0, -3.0]), np.array([0.5, 2.0, 3000.0]), np.array([1.0, -2.0, 0.5])
+    omega_ib = np.array([0.05, -0.02, 0.1])
+    truth = Navigation(C, V, position, np.zeros(3))
+    omega_eb = omega_ib - C.T @ earth_rate_n(position[0])
+    fixes = {"vel": np.r_[V + C @ np.cross(omega_eb, lever), omega_ib],
+             "pos": np.r_[position + enu_to_geodetic_step(C @ lever, position)]}
+    x = np.zeros(CORE_STATES)
+    x[PHI], x[DV], x[POS] = [2e-4, -1e-4, 3e-4], [0.02, -0.01, 0.03], [0.5, -0.4, 0.3]
+    estimate = Navigation(rotation_matrix(-x[PHI]) @ C, V + x[DV], position + enu_to_geodetic_step(x[POS], position),
+                          np.zeros(3))
+    for measurement, value in ((GnssVelocity(0.1, lever), fixes["vel"]), (GnssPosition(2.0, lever), fixes["pos"])):
+        assert np.abs(measurement.model(truth, np.zeros(0), value)[0]).max() < 1e-6      # exact fix: no innovation
+        nu, H, _, _ = measurement.model(estimate, np.zeros(0), value)
+        assert np.abs(nu - H @ x).max() < 1e-3 * np.abs(nu).max()

@@ -98,3 +98,27 @@ def test_centred_wahba_absorbs_a_constant_common_to_all_pairs():
     for k in range(0, len(b), 7):   # grouping does not change the bits
         again.fold(*again.prepare(b[k:k + 7], r[k:k + 7], np.ones(7)))
     assert np.array_equal(again.quaternion(), centred.quaternion())
+
+
+def test_weighted_centred_wahba_screens_a_glitch_pair_and_counts_it():
+    """GNSS glitches: a pair far outside the fit's residuals (in units of its stated noise) is left out."""
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment, quat_from_rotvec
+    from sinsalign.service.align.solvers import CentredWahba
+    rng = np.random.default_rng(5)
+    C_true = dcm_from_quat(quat_from_rotvec(np.array([0.1, 0.2, -0.7])))
+    r = np.cumsum(rng.normal(size=(300, 3)), axis=0) * 10.0
+    b = r @ C_true + 0.1 * rng.normal(size=(300, 3))
+    b_glitch = b.copy()
+    b_glitch[150:160] += np.array([20.0, 0.0, 0.0])                       # ten pairs 20 m/s off
+    mu = np.full(300, 0.1**2)
+    screened, unscreened, clean = (CentredWahba(weighted=True, gate_chi2=36.0), CentredWahba(weighted=True),
+                                   CentredWahba(weighted=True, gate_chi2=36.0))
+    for solver, bb in ((screened, b_glitch), (unscreened, b_glitch), (clean, b)):
+        for k in range(300):
+            solver.fold(*solver.prepare(bb[k:k + 1], r[k:k + 1], mu[k:k + 1]))
+    error = {name: np.degrees(np.abs(misalignment(dcm_from_quat(s.quaternion()), C_true)).max())
+             for name, s in (("screened", screened), ("unscreened", unscreened), ("clean", clean))}
+    assert screened.rejected == 10 and clean.rejected == 0
+    assert max(error["screened"], error["clean"]) < 0.01 < 0.1 < error["unscreened"]
+    with pytest.raises(ValueError):
+        CentredWahba(gate_chi2=36.0)                                       # screening needs the stated noise
