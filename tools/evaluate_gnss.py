@@ -71,6 +71,14 @@ def _variant_row(label: str, runs: Sequence[RunResult]) -> str:
             f"{100 * honest.inside_2sigma:.1f} % | {honest.converged_beyond_3sigma} |")
 
 
+def _mean_sigma(runs: Sequence[RunResult], t_s: float) -> str:
+    """The reported heading σ (deg) at the epoch nearest ``t_s``, mean over the runs (– beyond them)."""
+    if t_s > runs[0].t[-1] + 1e-9:
+        return "–"
+    k = int(np.argmin(np.abs(runs[0].t - t_s)))
+    return f"{np.mean([r.heading_sigma_deg[k] for r in runs]):.5f}"
+
+
 def _faults_lines(clean: Sequence[RunResult] | None, faulty: Sequence[RunResult]) -> list[str]:
     """The faults row's recovery (heading MAE at the outage's start and after it) and summed counters."""
     before, after = _stats(faulty, OUTAGE_S[0]), _stats(faulty, OUTAGE_S[1] + RECOVERY_S)
@@ -79,8 +87,10 @@ def _faults_lines(clean: Sequence[RunResult] | None, faulty: Sequence[RunResult]
              f"{GLITCHES[1][3]:g} m north for {GLITCHES[1][1]:g} s at {GLITCHES[1][0]:g} s, outage "
              f"{OUTAGE_S[0]:g}–{OUTAGE_S[1]:g} s", "",
              f"| heading MAE at {OUTAGE_S[0]:g} s (outage start) | MAE at {OUTAGE_S[1] + RECOVERY_S:g} s "
-             f"({RECOVERY_S:g} s after its end) | ratio (≤ 2) |", "|---|---|---|",
-             f"| {_cell(before, 'mae', '.4f')} | {_cell(after, 'mae', '.4f')} | {ratio} |",
+             f"({RECOVERY_S:g} s after its end) | ratio (≤ 2) | mean σ at {OUTAGE_S[0]:g} s | at "
+             f"{OUTAGE_S[1] - 1:g} s (in the outage) |", "|---|---|---|---|---|",
+             f"| {_cell(before, 'mae', '.4f')} | {_cell(after, 'mae', '.4f')} | {ratio} | "
+             f"{_mean_sigma(faulty, OUTAGE_S[0])} | {_mean_sigma(faulty, OUTAGE_S[1] - 1.0)} |",
              "", "| counter (summed over seeds) | VIF compensated, clean | with faults |", "|---|---|---|"]
     clean_counts, faulty_counts = summed_counters(clean or []), summed_counters(faulty)
     for key in sorted(set(clean_counts) | set(faulty_counts)):
