@@ -26,7 +26,8 @@ HEALTH = ("starting", "ok", "degraded", "no_input")
 NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_published", "serial_reconnects",
                         "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames",
                         "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
-                        "gnss_accepted", "master_epochs", "master_unaided_queries", "master_accepted"})
+                        "gnss_vel_accepted", "gnss_pos_accepted", "master_epochs", "master_unaided_queries",
+                        "master_accepted"})
 """Status counters that count work, not faults; every other counter counts a drop or a fault."""
 
 
@@ -122,6 +123,17 @@ class AidingSample:
 def aiding_row(sample: AidingSample) -> list[float]:
     """[t, values…] in the kind's pinned log column order (what an aiding track takes)."""
     return [sample.t, *(v for name in AIDING_FIELDS[sample.kind] for v in sample.values[name])]
+
+
+def aiding_sample(kind: str, seq: int, row: list[float] | tuple[float, ...]) -> AidingSample:
+    """The epoch of ``row`` = [t (s), values…] in the kind's pinned log column order (inverse of :func:`aiding_row`)."""
+    values, at = {}, 1
+    for name, count in AIDING_FIELDS[kind].items():
+        values[name] = tuple(float(v) for v in row[at:at + count])
+        at += count
+    if at != len(row):
+        raise MessageError(f"aiding {kind}: expected t and {at - 1} values, got {len(row)} numbers")
+    return AidingSample(kind, seq, float(row[0]), values)
 
 
 def aiding_message(sample: AidingSample) -> dict[str, Any]:

@@ -3,7 +3,10 @@
 One loop thread does everything in order, driven by the IMU frames' own timestamps: read what
 arrived (serial port and/or the Zenoh IMU topic), decode, check every sample (time must move
 forward, values finite), feed the pipeline, publish each attitude record as it comes out, and
-publish the status at ``daemon.status_period_s`` of wall time. Every drop is counted in the
+publish the status at ``daemon.status_period_s`` of wall time. In an aided mode
+(``aiding.inputs``: ``odo`` or ``gnss``) the epochs of that kind (``…/aid/<kind>`` on Zenoh, serial
+aiding frames) go to its track, and each IMU sample waits for its aiding (at most
+``aiding.max_wait_s`` of data time) before the pipeline takes both. Every drop is counted in the
 status; nothing received over the wire is executed or changes the configuration. The Zenoh side
 also holds a liveliness token and answers a read-only query with the current state and the
 effective configuration.
@@ -79,7 +82,9 @@ class Daemon:
         ad = config.aiding
         self.tracks = {kind: AidingTrack(len(messages.AIDING_FIELDS_FLAT[kind]), getattr(ad, f"{kind}_latency_s", 0.0),
                                          ad.max_gap_s) for kind in self.aid_kinds}
-        self._wait = AidingWait(self.tracks["odo"], ad.max_wait_s) if "odo" in self.tracks else None
+        # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
+        self.aid_kind: str | None = self.aid_kinds[0] if self.aid_kinds else None
+        self._wait = None if self.aid_kind is None else AidingWait(self.tracks[self.aid_kind], ad.max_wait_s)
         self.gate = SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples)
         self.decoder = FrameDecoder()
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
@@ -343,7 +348,8 @@ class Daemon:
         inputs = [f"serial {self.serial.path} @ {self.serial.baud} Bd"] if self.serial is not None else []
         if self._imu_sub is not None:
             inputs.append(f"Zenoh {self.keys.imu}")
-        return " + ".join(inputs) or "no input"
+        aiding = [f"{kind} aiding (Zenoh {self.keys.aid(kind)}, serial aiding frames)" for kind in self.aid_kinds]
+        return " + ".join(inputs + aiding) or "no input"
 
     def _open_recording(self, path: str) -> TextIO | None:
         if not path:

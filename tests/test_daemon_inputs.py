@@ -5,11 +5,17 @@ either, THEN both reach the pipeline (per-input counters, records equal to the o
 GIVEN aiding frames (type 2) interleaved with the IMU frames on the serial link, THEN they are
 decoded and counted, the configured kind's go to its track (the others counted as unused), a bad
 one is counted and dropped, and none of them counts as an IMU sequence gap. GIVEN a moving vehicle
-with its odometer on Zenoh, late, THEN the samples wait for it and the records equal the replay.
+with its odometer on Zenoh, late, or a flight with its GNSS fixes late on Zenoh or as serial aiding
+frames (coarse stage alone, or on into the Kalman stage), THEN the samples wait for their aiding, the
+records equal the replay of the recording with the aiding log, nothing counts as a fault, and the
+GNSS-aided heading is right against the simulated truth.
 """
 from __future__ import annotations
 
+import json
+import threading
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,6 +23,12 @@ import zenoh
 from daemon_harness import RunningDaemon
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import MSG_AIDING, encode_aiding, encode_frame, encode_imu
+from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
+from sinsalign.service.config import Config
+from sinsalign.tools.replay import replay
+from sinsalign.tools.sim.aiding import gnss_epochs, odometer_epochs, write_body_velocity_log, write_gnss_log
+from sinsalign.tools.sim.imu import ImuChunk, simulate
+from sinsalign.tools.sim.scenarios import Scenario, get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
 from test_daemon_e2e import assert_same_as_replay, samples
 
@@ -49,6 +61,12 @@ def running(tmp_path, pty_pair):
     for run in started:
         if run.thread.is_alive():
             run.stop()
+
+
+def write_stream(fd: int, data: bytes) -> None:
+    """Frames written into the pty as fast as the daemon reads them (4-kB writes, each may wait for room)."""
+    for at in range(0, len(data), 4096):
+        write_all(fd, data[at:at + 4096])
 
 
 def wait_until(condition, timeout_s: float = 10.0) -> None:
@@ -106,9 +124,7 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
         if k == n // 2:    # a well-formed frame whose aiding payload is not: kind code 7
             stream.append(encode_frame(MSG_AIDING, aid_seq, 0, bytes([7]) + bytes(24)))
             aid_seq += 1
-    data = b"".join(stream)
-    for at in range(0, len(data), 4096):
-        write_all(pty_pair.master_fd, data[at:at + 4096])
+    write_stream(pty_pair.master_fd, b"".join(stream))
     wait_until(lambda: daemon.counters.samples_used == n)
     time.sleep(0.3)   # a status period
     run.stop()
@@ -125,41 +141,82 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
     assert "unknown aiding kind code 7" in subscriber.status[-1]["last_error"]
 
 
-def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_over_zenoh(tmp_path, pty_pair,
-                                                                                          running):
-    """IMU frames on the pty, the odometer on …/aid/odo two seconds of data behind: the samples wait for
-    their aiding, and the records equal the offline replay of the recording with the odometer log."""
-    import threading
-
-    from sinsalign.service.align.conventions import DEG
-    from sinsalign.tools.sim.aiding import odometer_epochs, write_body_velocity_log
-    from sinsalign.tools.sim.imu import simulate
-    from sinsalign.tools.sim.scenarios import get_scenario
-    scenario = get_scenario("seed003-20").for_seed(1)
-    seconds, speed = 125.0, 25.0   # the default 120-s window, then the Kalman stage
+# ---- aided modes: a moving vehicle, its aiding late -------------------------------------------
+def simulated_run(scenario: Scenario, seconds: float) -> ImuChunk:
+    """Seed 1 of ``scenario``: ``seconds`` of IMU samples in one chunk (t in s, Δθ in rad, Δv in m/s)."""
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1,
                         chunk_samples=10**6)
-    epochs = odometer_epochs(scenario, 1)[:round(seconds * 100)]
-    run = running(site={"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
-                        "height_m": scenario.site.height_m},
-                  imu={"rate_hz": scenario.rate_hz}, sensor=scenario.grade.datasheet(),
-                  aiding={"inputs": ["odo"], "max_wait_s": 10.0})
-    daemon, subscriber = run.daemon, run.subscriber
-    publisher = subscriber.session.declare_publisher(daemon.keys.aid("odo"),
-                                                     congestion_control=zenoh.CongestionControl.BLOCK)
+    return chunk
 
-    def send_odometer():
-        time.sleep(2.0 / speed)   # two seconds of data late
+
+def scenario_sections(scenario: Scenario) -> dict[str, dict]:
+    """The daemon's [site] (degrees, metres), [imu] (Hz) and [sensor] (datasheet) tables for ``scenario``."""
+    return {"site": {"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
+                     "height_m": scenario.site.height_m},
+            "imu": {"rate_hz": scenario.rate_hz}, "sensor": scenario.grade.datasheet()}
+
+
+def send_late(publisher: zenoh.Publisher, kind: str, epochs: np.ndarray, speed: float,
+              late_s: float) -> threading.Thread:
+    """A started thread publishing aiding epochs (N, 1 + values: t in s, then the kind's pinned log columns)
+    at ``speed`` × real time, ``late_s`` seconds of data behind IMU frames played from now."""
+    def send() -> None:
+        time.sleep(late_s / speed)
         start = time.monotonic()
         for seq, row in enumerate(epochs):
             delay = row[0] / speed - (time.monotonic() - start)
             if delay > 0:
                 time.sleep(delay)
-            sample = messages.AidingSample("odo", seq, float(row[0]), {"v_b": tuple(row[1:])})
-            publisher.put(messages.pack(messages.aiding_message(sample)))
+            publisher.put(messages.pack(messages.aiding_message(messages.aiding_sample(kind, seq, row))))
 
-    sender = threading.Thread(target=send_odometer)
+    sender = threading.Thread(target=send)
     sender.start()
+    return sender
+
+
+def frames_with_aiding(chunk: ImuChunk, kind: str, epochs: np.ndarray, late_s: float) -> bytes:
+    """IMU frames (type 1) with an aiding frame (type 2) of ``kind`` for each epoch (N, 1 + values) interleaved
+    ``late_s`` seconds of data after its time stamp (after the last IMU frame if that is later)."""
+    after = np.searchsorted(chunk.t, epochs[:, 0] + late_s)   # each epoch goes before IMU frame `after`
+    stream, j = [], 0
+    for k in range(len(chunk.t) + 1):
+        while j < len(epochs) and after[j] == k:
+            stream.append(encode_aiding(j, float(epochs[j, 0]), kind, epochs[j, 1:]))
+            j += 1
+        if k < len(chunk.t):
+            stream.append(encode_imu(k, float(chunk.t[k]), chunk.dtheta[k], chunk.dv[k]))
+    return b"".join(stream)
+
+
+def assert_close_to_replay(received: list[dict], tmp_path: Path, config: Config, aids: dict[str, str]) -> None:
+    """The daemon's records against the offline replay of its recording with the aiding logs ``aids`` (kind →
+    path): the same epochs and phases, and attitudes within 1e-4 of the replay's heading σ."""
+    replay(tmp_path / "recorded.csv", tmp_path / "replayed.jsonl", config, progress=False, aids=aids)
+    offline = [json.loads(line) for line in (tmp_path / "replayed.jsonl").read_text().splitlines()]
+    # equal to within 1e-4 σ, not bit for bit as the fixed-site daemon: the aided live path differs from the
+    # replay by up to ~7e-6° with the odometer and ~1e-11° with GNSS (cause not found yet)
+    assert [m["t"] for m in received] == [r["t"] for r in offline]
+    difference = np.abs(misalignment(dcm_from_quat(np.array([m["q"] for m in received])),
+                                     dcm_from_quat(np.array([r["q"] for r in offline])))).max(axis=1) / DEG
+    sigma = np.array([r["heading_sigma_deg"] for r in offline])
+    worst = int(np.argmax(difference / sigma))
+    assert (difference <= 1e-4 * sigma).all(), (worst, difference[worst], sigma[worst], difference.max())
+    assert [m["phase"] for m in received] == [r["phase"] for r in offline]
+
+
+def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_over_zenoh(tmp_path, pty_pair,
+                                                                                          running):
+    """IMU frames on the pty, the odometer on …/aid/odo two seconds of data behind: the samples wait for
+    their aiding, and the records equal the offline replay of the recording with the odometer log."""
+    scenario = get_scenario("seed003-20").for_seed(1)
+    seconds, speed = 125.0, 25.0   # the default 120-s window, then the Kalman stage
+    chunk = simulated_run(scenario, seconds)
+    epochs = odometer_epochs(scenario, 1)[:round(seconds * 100)]
+    run = running(**scenario_sections(scenario), aiding={"inputs": ["odo"], "max_wait_s": 10.0})
+    daemon, subscriber = run.daemon, run.subscriber
+    publisher = subscriber.session.declare_publisher(daemon.keys.aid("odo"),
+                                                     congestion_control=zenoh.CongestionControl.BLOCK)
+    sender = send_late(publisher, "odo", epochs, speed, late_s=2.0)
     FramePlayer(pty_pair.master_fd, speed=speed).play(chunk.t, chunk.dtheta, chunk.dv)
     sender.join()
     n_records = int(seconds / run.config.output.period_s)
@@ -172,19 +229,78 @@ def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_o
     assert len(subscriber.attitude) == n_records
     assert subscriber.attitude[-1]["phase"] in ("fine", "aligned")
     write_body_velocity_log(tmp_path / "odo.csv", epochs[:, 0], epochs[:, 1:])
-    import json
+    assert_close_to_replay(subscriber.attitude, tmp_path, run.config, {"odo": str(tmp_path / "odo.csv")})
 
-    from sinsalign.tools.replay import replay
-    replay(tmp_path / "recorded.csv", tmp_path / "replayed.jsonl", run.config, progress=False,
-           aids={"odo": str(tmp_path / "odo.csv")})
-    offline = [json.loads(line) for line in (tmp_path / "replayed.jsonl").read_text().splitlines()]
-    # equal to within 1e-4 σ: the live path differs from the replay by up to ~2e-6° in some runs (not
-    # bit-identical as the fixed-site daemon is; cause not found yet, see the README's known issues)
-    from sinsalign.service.align.conventions import dcm_from_quat, misalignment
-    assert [m["t"] for m in subscriber.attitude] == [r["t"] for r in offline]
-    difference = np.abs(misalignment(dcm_from_quat(np.array([m["q"] for m in subscriber.attitude])),
-                                     dcm_from_quat(np.array([r["q"] for r in offline])))).max(axis=1) / DEG
-    sigma = np.array([r["heading_sigma_deg"] for r in offline])
-    worst = int(np.argmax(difference / sigma))
-    assert (difference <= 1e-4 * sigma).all(), (worst, difference[worst], sigma[worst], difference.max())
-    assert [m["phase"] for m in subscriber.attitude] == [r["phase"] for r in offline]
+
+GNSS_SECONDS, GNSS_SPEED, GNSS_LATE_S = 24.0, 10.0, 2.0
+"""Seed-004 flight played for 24 s of data at ×10, the fixes 2 s of data late."""
+
+
+def fly_with_gnss(tmp_path: Path, pty_pair: PtyPair, running, transport: str,
+                  handover_s: float) -> tuple[list[dict], dict[str, int], Scenario]:
+    """The seed-004 flight through the daemon, its GNSS fixes (50 Hz, antenna 1 m from the IMU on every axis)
+    ``GNSS_LATE_S`` of data behind the IMU frames on the pty, on …/aid/gnss (``transport`` "zenoh") or as
+    serial aiding frames among the IMU frames ("serial"); the Kalman stage from ``handover_s`` (s) of data.
+    Checks that every fix and sample was used, nothing counted as a fault, and the records equal the offline
+    replay with the GNSS log; returns the records, the last status counters and the scenario."""
+    scenario = get_scenario("seed004").for_seed(1)
+    chunk = simulated_run(scenario, GNSS_SECONDS)
+    epochs = gnss_epochs(scenario, 1)[:round(GNSS_SECONDS * scenario.gnss.rate_hz)]
+    lever_b = scenario.gnss.lever_b
+    run = running(**scenario_sections(scenario), aiding={"inputs": ["gnss"], "gnss_lever_m": list(lever_b),
+                                                         "max_wait_s": 10.0, "gnss_handover_s": handover_s})
+    daemon, subscriber = run.daemon, run.subscriber
+    if transport == "zenoh":
+        publisher = subscriber.session.declare_publisher(daemon.keys.aid("gnss"),
+                                                         congestion_control=zenoh.CongestionControl.BLOCK)
+        sender = send_late(publisher, "gnss", epochs, GNSS_SPEED, GNSS_LATE_S)
+        FramePlayer(pty_pair.master_fd, speed=GNSS_SPEED).play(chunk.t, chunk.dtheta, chunk.dv)
+        sender.join()
+    else:
+        write_stream(pty_pair.master_fd, frames_with_aiding(chunk, "gnss", epochs, GNSS_LATE_S))
+    n_records = int(GNSS_SECONDS / run.config.output.period_s)
+    subscriber.wait_for(n_records, timeout_s=20)
+    time.sleep(0.3)   # a status period
+    run.stop()
+    counters = subscriber.status[-1]["counters"]
+    assert counters["gnss_epochs"] == len(epochs) == 1200 and counters["samples_used"] == len(chunk.t)
+    assert counters["aiding_frames"] == (len(epochs) if transport == "serial" else 0)
+    assert messages.faults(counters) == {}
+    assert len(subscriber.attitude) == n_records
+    write_gnss_log(tmp_path / "gnss.csv", epochs, lever_b)
+    assert_close_to_replay(subscriber.attitude, tmp_path, run.config, {"gnss": str(tmp_path / "gnss.csv")})
+    return subscriber.attitude, counters, scenario
+
+
+def attitude_errors_deg(scenario: Scenario, records: list[dict]) -> tuple[np.ndarray, np.ndarray]:
+    """Output epochs t (N,) in s and the misalignment φ (N, 3: E, N, U) of the records against the truth, degrees."""
+    t = np.array([m["t"] for m in records])
+    return t, misalignment(dcm_from_quat(np.array([m["q"] for m in records])), scenario.motion.attitude(t)) / DEG
+
+
+@pytest.mark.parametrize("transport", ["zenoh", "serial"])
+def test_the_daemon_aligns_a_flight_with_gnss_fixes_arriving_late(tmp_path, pty_pair, running, transport):
+    """GNSS fixes late on …/aid/gnss or as serial aiding frames: the samples wait for their fixes, the records
+    equal the offline replay with the GNSS log, and the heading is right against the truth early (only with
+    the lever arm compensated) and late (only with the columns in their order)."""
+    # gnss_handover_s beyond the run: the VIF coarse stage alone, whatever the Kalman stage's default
+    records, counters, scenario = fly_with_gnss(tmp_path, pty_pair, running, transport, handover_s=60.0)
+    assert counters["gnss_vel_accepted"] == counters["gnss_pos_accepted"] == 0
+    t, phi = attitude_errors_deg(scenario, records)
+    late = t >= 20.0
+    # seed 1 measured: -0.21° at 5 s (a 1-m lever arm ignored: -1.65°; its x sign flipped: -1.27°), at most
+    # 0.081° from 20 s (velocity before position or vE, vN swapped: > 100°; fixes 0.1 s late: 0.45°; vU sign
+    # flipped: 0.34°) and level at most 0.018° from 20 s (vU sign flipped: 0.15°; lat and lon swapped: 0.083°;
+    # the lever's x sign flipped: 0.079°)
+    assert abs(phi[t == 5.0, 2][0]) < 0.6
+    assert np.abs(phi[late, 2]).max() < 0.2 and np.abs(phi[late, :2]).max() < 0.05
+
+
+def test_the_daemon_runs_the_gnss_kalman_stage_on_serial_aiding_frames(tmp_path, pty_pair, running):
+    """The Kalman stage from 12 s, live: its GNSS velocity and position updates are counted as work, not
+    faults, its records equal the replay's, and the heading stays right from 20 s (seed 1: at most 0.071°)."""
+    records, counters, scenario = fly_with_gnss(tmp_path, pty_pair, running, "serial", handover_s=12.0)
+    assert counters["gnss_vel_accepted"] > 0 and counters["gnss_pos_accepted"] > 0
+    assert records[-1]["phase"] in ("fine", "aligned")
+    t, phi = attitude_errors_deg(scenario, records)
+    assert np.abs(phi[t >= 20.0, 2]).max() < 0.2

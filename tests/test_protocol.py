@@ -308,6 +308,13 @@ def test_aiding_messages_of_each_kind_round_trip_and_are_checked():
         messages.decode_aiding("odo", messages.pack({"v": 1, "seq": 0, "t": 1.0, "v_b": [0, 20]}))
     with pytest.raises(messages.MessageError, match="unknown aiding kind"):
         messages.decode_aiding("lidar", messages.pack({"v": 1}))
+    # a log row [t, values…] in the pinned column order is the epoch aiding_row turns back into that row
+    assert messages.aiding_sample("gnss", 3, [12.5, 30.0, 114.0, 500.0, 1.0, 50.0, 0.0]) == gnss
+    for kind, width in (("odo", 3), ("gnss", 6), ("master", 10)):
+        row = [0.5 * k for k in range(1 + width)]
+        assert messages.aiding_row(messages.aiding_sample(kind, 0, row)) == row
+    with pytest.raises(messages.MessageError, match="expected t and 6 values, got 6"):
+        messages.aiding_sample("gnss", 0, [1.0, 30.0, 114.0, 500.0, 1.0, 50.0])
 
 
 @settings(max_examples=300, deadline=None)

@@ -65,7 +65,7 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     config, noise, feeds = open_aids(aids or {}, config)
     pipeline = build_pipeline(config, Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m), h.rate_hz, h.datasheet(),
                               noise)
-    aid_feed = feeds.get("odo") or feeds.get("gnss")
+    aid_feed = next(iter(feeds.values()), None)   # one aided mode at a time: build_pipeline refused the rest
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
     samples = records = 0
