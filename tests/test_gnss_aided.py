@@ -174,3 +174,13 @@ def test_gnss_measurement_jacobians_match_the_models_to_first_order():
         assert np.abs(measurement.model(truth, np.zeros(0), value)[0]).max() < 1e-6      # exact fix: no innovation
         nu, H, _, _ = measurement.model(estimate, np.zeros(0), value)
         assert np.abs(nu - H @ x).max() < 1e-3 * np.abs(nu).max()
+
+
+def test_a_gnss_log_states_its_lever_arm_and_noise_over_the_configuration(tmp_path):
+    from sinsalign.tools.replay import open_aids
+    from sinsalign.tools.sim.aiding import write_gnss_log
+    scenario = get_scenario("seed004")
+    path = write_gnss_log(tmp_path / "gnss.csv", gnss_epochs(scenario, 1)[:10], np.array([0.5, -1.0, 2.0]), 0.05, 3.0)
+    config, _, _ = open_aids({"gnss": str(path)}, config_from_mapping({"aiding": {"gnss_lever_m": [9.0, 9.0, 9.0]}}))
+    ad = config.aiding
+    assert (ad.gnss_lever_m, ad.gnss_vel_std_mps, ad.gnss_pos_std_m) == ((0.5, -1.0, 2.0), 0.05, 3.0)
