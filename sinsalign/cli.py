@@ -94,24 +94,29 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
+def _aided_table(name: str, seeds: range, out: Path) -> bool:
+    """The aided modes' own tables (seed003: odometer, seed004: GNSS) and plots; False for other names."""
+    if name == "seed003":
+        from sinsalign.tools.evaluate_aided import plot_seed003 as plot
+        from sinsalign.tools.evaluate_aided import seed003_table as table
+    elif name == "seed004":
+        from sinsalign.tools.evaluate_gnss import plot_seed004 as plot
+        from sinsalign.tools.evaluate_gnss import seed004_table as table
+    else:
+        return False
+    text, runs = table(seeds)
+    (out / f"{name}.md").write_text(text + "\n")
+    print(text)
+    print(f"\nplot: {plot(runs, out / f'{name}_heading.png')}\ntable: {out / f'{name}.md'}")
+    return True
+
+
 def cmd_eval(args: argparse.Namespace) -> int:
     from sinsalign.tools.evaluate import fine_table, monte_carlo, plot_fine, plot_heading, scenario_table, solver_table
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    if args.scenario == "seed003":
-        from sinsalign.tools.evaluate_aided import plot_seed003, seed003_table
-        text, runs = seed003_table(seeds)
-        (out / "seed003.md").write_text(text + "\n")
-        print(text)
-        print(f"\nplot: {plot_seed003(runs, out / 'seed003_heading.png')}\ntable: {out / 'seed003.md'}")
-        return 0
-    if args.scenario == "seed004":
-        from sinsalign.tools.evaluate_gnss import plot_seed004, seed004_table
-        text, gnss_runs = seed004_table(seeds)
-        (out / "seed004.md").write_text(text + "\n")
-        print(text)
-        print(f"\nplot: {plot_seed004(gnss_runs, out / 'seed004_heading.png')}\ntable: {out / 'seed004.md'}")
+    if _aided_table(args.scenario, seeds, out):
         return 0
     runs = monte_carlo(args.scenario, seeds, _overrides(args))
     text = scenario_table(args.scenario, runs)

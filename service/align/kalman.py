@@ -299,22 +299,28 @@ class BodyVelocity:
         return value - h, H_core, H_extra, np.eye(3) * self.std_mps**2
 
 
-class GnssVelocity:
-    """GNSS velocity of an antenna at lever arm l^b: h = V^n + C_b^n (ω_eb^b × l^b), ENU m/s.
+class AntennaMeasurement:
+    """A GNSS fix of an antenna at lever arm ``lever_b`` (IMU to antenna, body axes, m) with white noise
+    ``std`` per ENU axis; the lever arm is known (no states of its own)."""
 
-    The value given to :meth:`ErrorStateFilter.update` is (vE, vN, vU, ω_ib^b (3) rad/s): the fix
-    and the gyro rate at its time. std_mps : white noise per axis.
-    """
-
-    name = "gnss_vel"
     extra_states = 0
 
-    def __init__(self, std_mps: float, lever_b: np.ndarray | None = None) -> None:
-        self.std_mps = std_mps
+    def __init__(self, std: float, lever_b: np.ndarray | None = None) -> None:
+        self.std = std
         self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
 
     def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(0), np.zeros(0)
+
+
+class GnssVelocity(AntennaMeasurement):
+    """GNSS velocity: h = V^n + C_b^n (ω_eb^b × l^b), ENU m/s (``std`` in m/s).
+
+    The value given to :meth:`ErrorStateFilter.update` is (vE, vN, vU, ω_ib^b (3) rad/s): the fix
+    and the gyro rate at its time.
+    """
+
+    name = "gnss_vel"
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -323,22 +329,14 @@ class GnssVelocity:
         H_core = np.zeros((3, CORE_STATES))
         H_core[:, PHI] = -skew(lever_velocity)
         H_core[:, DV] = -np.eye(3)
-        return value[:3] - nav.V_n - lever_velocity, H_core, np.zeros((3, 0)), np.eye(3) * self.std_mps**2
+        return value[:3] - nav.V_n - lever_velocity, H_core, np.zeros((3, 0)), np.eye(3) * self.std**2
 
 
-class GnssPosition:
-    """GNSS position of an antenna at lever arm l^b: h = p + C_b^n l^b, as an ENU offset (m) from the
-    navigation's position. The value is (lat rad, lon rad, h m) of the fix. std_m : white noise per axis."""
+class GnssPosition(AntennaMeasurement):
+    """GNSS position: h = p + C_b^n l^b, as an ENU offset (m) from the navigation's position (``std`` in m).
+    The value is (lat rad, lon rad, h m) of the fix."""
 
     name = "gnss_pos"
-    extra_states = 0
-
-    def __init__(self, std_m: float, lever_b: np.ndarray | None = None) -> None:
-        self.std_m = std_m
-        self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
-
-    def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
-        return np.zeros(0), np.zeros(0)
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -347,4 +345,4 @@ class GnssPosition:
         H_core[:, PHI] = -skew(lever_n)
         H_core[:, POS] = -np.eye(3)
         innovation = geodetic_to_enu_step(value[:3] - nav.position, nav.position) - lever_n
-        return innovation, H_core, np.zeros((3, 0)), np.eye(3) * self.std_m**2
+        return innovation, H_core, np.zeros((3, 0)), np.eye(3) * self.std**2
