@@ -85,8 +85,10 @@ class Measurement(Protocol):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(innovation y − h(x̂) (m,), −∂h/∂core (m, CORE_STATES), −∂h/∂extra (m, extra_states), R (m, m)):
-        the innovation is H x + noise for the error x = x̂ − x."""
+        """(innovation y − h(x̂) (m,), H_core (m, CORE_STATES), H_extra (m, extra_states), R (m, m)).
+
+        H_core = −∂h/∂(core errors): the truth is the navigation less its error (φ, δV, …), so the innovation
+        is H_core times the error. H_extra = ∂h/∂extra: the extra states hold whole values."""
         ...
 
 
