@@ -40,8 +40,15 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
 
     source: GnssSource
 
-    def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
-        return self.source.observation_variance(elapsed_s)
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.source.accumulate(elapsed_s, alpha)
+        return super().observe(elapsed_s, q_b_b0, alpha, aid)
+
+    def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs weighted by the source's stated noise, with its drift regressor if it has one."""
+        return self.solver.prepare(b, r, self.source.observation_variance(elapsed_s),
+                                   self.source.drift_regressor(elapsed_s))
 
     def sigma(self, elapsed_s: float) -> tuple[float, float]:
         covariance = self.solver.covariance()
@@ -69,8 +76,9 @@ class GnssAidedPipeline(KalmanStagePipeline):
         source_class = GnssPositionSource if ad.gnss_formula == "pif" else GnssVelocitySource
         source = source_class(self.site, np.array(ad.gnss_lever_m), ad.gnss_vel_std_mps, ad.gnss_pos_std_m)
         # the pairs are screened against the fit (a glitch of the fixes would otherwise enter it for good)
-        return GnssCoarseAlignment(source, self.grade, CentredWahba(weighted=True, gate_chi2=PAIR_GATE_CHI2),
-                                   self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+        solver = CentredWahba(weighted=True, gate_chi2=PAIR_GATE_CHI2, drift=source.drift)
+        return GnssCoarseAlignment(source, self.grade, solver, self.sample_period_s, a.obs_interval_s,
+                                   a.disturbance_velocity_mps)
 
     def _make_fine(self) -> ErrorStateFilter | None:
         if not self.config.fine.enabled:
@@ -124,9 +132,11 @@ class GnssAidedPipeline(KalmanStagePipeline):
 
     def aiding_counters(self) -> dict[str, int]:
         """What the estimators made of the fixes: coarse observations without one, coarse pairs screened
-        out (glitches), and the Kalman stage's accepted and gated-out velocity and position fixes."""
+        out (glitches) and screens reopened after a run of rejections, and the Kalman stage's accepted
+        and gated-out velocity and position fixes."""
         counters = {"gnss_unaided_observations": self.coarse.unaided_observations,
-                    "gnss_coarse_rejected": self.coarse.solver.rejected}
+                    "gnss_coarse_rejected": self.coarse.solver.rejected,
+                    "gnss_coarse_reopened": self.coarse.solver.reopened}
         if self.fine is not None:
             for name, c in self.fine.counters.items():
                 counters |= {f"{name}_accepted": c.accepted, f"{name}_rejected": c.rejected}

@@ -122,3 +122,20 @@ def test_weighted_centred_wahba_screens_a_glitch_pair_and_counts_it():
     assert max(error["screened"], error["clean"]) < 0.01 < 0.1 < error["unscreened"]
     with pytest.raises(ValueError):
         CentredWahba(gate_chi2=36.0)                                       # screening needs the stated noise
+
+
+def test_the_screen_reopens_after_a_run_of_rejections_instead_of_locking_the_data_out():
+    """A fit gone wrong early (50 pairs of one attitude), then 600 pairs of another 5° away: the screen
+    rejects 30 in a row, lets the next 30 through, and the fit follows the data."""
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment, quat_from_rotvec
+    from sinsalign.service.align.solvers import GATE_REOPEN_PAIRS, CentredWahba
+    rng = np.random.default_rng(7)
+    early, late = (dcm_from_quat(quat_from_rotvec(np.array([0.1, 0.2, v]))) for v in (-0.7, -0.7 + np.radians(5)))
+    r = np.cumsum(rng.normal(size=(650, 3)), axis=0) * 10.0
+    b = np.concatenate((r[:50] @ early, r[50:] @ late)) + 0.1 * rng.normal(size=(650, 3))
+    solver = CentredWahba(weighted=True, gate_chi2=36.0)
+    for k in range(650):
+        solver.fold(*solver.prepare(b[k:k + 1], r[k:k + 1], np.full(1, 0.01)))
+    error_deg = np.degrees(np.abs(misalignment(dcm_from_quat(solver.quaternion()), late)).max())
+    assert solver.reopened >= 1 and solver.rejected >= GATE_REOPEN_PAIRS
+    assert error_deg < 1.0                       # locked out, it would have stayed 5° off

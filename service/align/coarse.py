@@ -108,11 +108,12 @@ class InertialCoarseAlignment:
             self.unaided_observations += int(len(due) - usable.sum())
             due = due[usable]
         b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due], None if aid is None else aid[due])
-        return (due, *self.solver.prepare(b, r, self.observation_variance(elapsed_s[due])))
+        return (due, *self.prepare_pairs(elapsed_s[due], b, r))
 
-    def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
-        """μ (N,) of the pairs taken at ``elapsed_s``: OPREQ's noise model of the unit vectors."""
-        return self.grade.observation_variance(elapsed_s, self._gravity, self.disturbance_velocity_mps)
+    def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The solver's prepared pairs taken at ``elapsed_s``, with OPREQ's noise model μ of the unit vectors."""
+        mu = self.grade.observation_variance(elapsed_s, self._gravity, self.disturbance_velocity_mps)
+        return self.solver.prepare(b, r, mu)
 
     def scratch(self) -> InertialCoarseAlignment:
         """A copy to run ahead on and throw away: the state the updates replace is copied, nothing else.

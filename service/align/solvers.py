@@ -140,53 +140,72 @@ class RecursiveK:
 class CentredWahba:
     """Least squares for b_k = A r_k + c with a free constant c, from O(1) running sums.
 
-    B = Σ w b rᵀ − (Σ w b)(Σ w r)ᵀ / Σ w over the unnormalised pairs; the attitude is the top
-    eigenvector of B's Davenport matrix, like the other solvers. Same interface as
-    :class:`RecursiveK` (``prepare``/``fold``/``quaternion``), so the coarse stage and the
-    pipeline use either. ``rho`` and ``trace_P`` are reported as 1/n and NaN.
+    B = Σ w b rᵀ − (Σ w b z ᵀ)(Σ w z zᵀ)⁻¹(Σ w r zᵀ)ᵀ over the unnormalised pairs, z = [1] (the constant
+    c; with ``drift``, z = [1, s_k] and the fit also absorbs c₁ s_k for a known scalar s_k per pair);
+    the attitude is the top eigenvector of B's Davenport matrix, like the other solvers. Same
+    interface as :class:`RecursiveK` (``prepare``/``fold``/``quaternion``), so the coarse stage and
+    the pipeline use either. ``rho`` and ``trace_P`` are reported as 1/n and NaN.
 
     weighted : weight each pair by 1/μ, μ the variance ``prepare`` is given (else equal weights,
         μ ignored). A weighted fit's residual variance is then in units of the stated noise.
+    drift : a second nuisance vector c₁ times the scalar ``s`` given to ``prepare`` per pair (the
+        position formula's first-fix error over the span).
     gate_chi2 : screen each pair before it is added (GNSS glitches): a pair whose residual against
         the fit so far, |e|²/μ over the fit's residual variance per axis (at least 1: never tighter
         than the stated noise), exceeds this is left out and counted in ``rejected``. Active from
-        :data:`GATE_MIN_PAIRS` pairs on (None: no screening).
+        :data:`GATE_MIN_PAIRS` pairs on (None: no screening); after :data:`GATE_REOPEN_PAIRS`
+        rejections in a row the next as many pairs are taken unscreened (counted in ``reopened``): a
+        fit gone wrong, or a lasting change of the data, must not lock the data out for good.
     """
 
     solver = "centred"
 
-    def __init__(self, weighted: bool = False, gate_chi2: float | None = None) -> None:
+    def __init__(self, weighted: bool = False, gate_chi2: float | None = None, drift: bool = False) -> None:
         if gate_chi2 is not None and not weighted:
             raise ValueError("screening pairs needs their stated noise: weighted=True")
         self.weighted = weighted
         self.gate_chi2 = gate_chi2
-        self.S_w = 0.0
+        m = 2 if drift else 1
+        self.S_zz = np.zeros((m, m))   # Σ w z zᵀ, Σ w b zᵀ, Σ w r zᵀ: the nuisance terms' sums
+        self.S_bz = np.zeros((3, m))
+        self.S_rz = np.zeros((3, m))
         self.S_br = np.zeros((3, 3))
-        self.S_b = np.zeros(3)
-        self.S_r = np.zeros(3)
         self.S_rr = np.zeros((3, 3))   # Σ w r rᵀ and Σ w |b|²: the fit's residual and information (covariance)
         self.S_bb = 0.0
         self.n_obs = 0
         self.rejected = 0
+        self.reopened = 0
+        self._rejected_in_row = 0
+        self._unscreened_left = 0
         self.rho = 1.0
         self.trace_P = float("nan")
 
-    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(w b rᵀ (M, 3, 3), [b, r, w] (M, 7)) of M pairs, for :meth:`fold`."""
+    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray, s: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """(w b rᵀ (M, 3, 3), [b, r, w, z] (M, 7 + m)) of M pairs, for :meth:`fold`; ``s`` (M,) the drift
+        regressor (with ``drift``)."""
         w = 1.0 / np.asarray(mu, dtype=float) if self.weighted else np.ones(len(b))
-        return w[:, None, None] * b[:, :, None] * r[:, None, :], np.column_stack((b, r, w))
+        z = [np.ones(len(b))] + ([np.asarray(s, dtype=float)] if len(self.S_zz) == 2 else [])
+        return w[:, None, None] * b[:, :, None] * r[:, None, :], np.column_stack((b, r, w, *z))
 
     def fold(self, outer: np.ndarray, pairs: np.ndarray) -> None:
         """Add prepared pairs to the sums, one after the other (same bits however grouped)."""
         for k in range(len(pairs)):
-            b, r, w = pairs[k, :3], pairs[k, 3:6], pairs[k, 6]
-            if self.gate_chi2 is not None and self.n_obs >= GATE_MIN_PAIRS and not self._consistent(b, r, w):
-                self.rejected += 1
-                continue
-            self.S_w = self.S_w + w
+            b, r, w, z = pairs[k, :3], pairs[k, 3:6], pairs[k, 6], pairs[k, 7:]
+            if self._unscreened_left:
+                self._unscreened_left -= 1
+            elif self.gate_chi2 is not None and self.n_obs >= GATE_MIN_PAIRS and not self._consistent(b, r, w, z):
+                if self._rejected_in_row < GATE_REOPEN_PAIRS:
+                    self.rejected += 1
+                    self._rejected_in_row += 1
+                    continue
+                self.reopened += 1
+                self._unscreened_left = GATE_REOPEN_PAIRS - 1
+            self._rejected_in_row = 0
+            self.S_zz = self.S_zz + w * np.outer(z, z)
+            self.S_bz = self.S_bz + w * np.outer(b, z)
+            self.S_rz = self.S_rz + w * np.outer(r, z)
             self.S_br = self.S_br + outer[k]
-            self.S_b = self.S_b + w * b
-            self.S_r = self.S_r + w * r
             self.S_rr = self.S_rr + w * np.outer(r, r)
             self.S_bb = self.S_bb + w * float(b @ b)
             self.n_obs += 1
@@ -196,15 +215,26 @@ class CentredWahba:
     def from_pairs(cls, b: np.ndarray, r: np.ndarray) -> CentredWahba:
         """The solver holding the M pairs (M, 3) at once, equal weights (vectorised sums; offline batches)."""
         solver = cls()
-        solver.S_br, solver.S_b, solver.S_r = b.T @ r, b.sum(axis=0), r.sum(axis=0)
+        solver.S_br, solver.S_bz, solver.S_rz = b.T @ r, b.sum(axis=0)[:, None], r.sum(axis=0)[:, None]
         solver.S_rr, solver.S_bb = r.T @ r, float((b * b).sum())
-        solver.n_obs, solver.S_w = len(b), float(len(b))
+        solver.n_obs, solver.S_zz = len(b), np.array([[float(len(b))]])
         solver.rho = 1.0 / max(len(b), 1)
         return solver
 
+    def _nuisance_inverse(self) -> np.ndarray:
+        """(Σ w z zᵀ)⁺: zero before any weight (pseudo-inverse: a drift regressor that has not varied yet)."""
+        return np.linalg.pinv(self.S_zz) if self.S_zz[0, 0] > 0.0 else np.zeros_like(self.S_zz)
+
+    def _centred(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The sums with the nuisance terms projected out: (Σ w b̃ r̃ᵀ, Σ w r̃ r̃ᵀ, Σ w |b̃|²)."""
+        G = self._nuisance_inverse()
+        S_br = self.S_br - self.S_bz @ G @ self.S_rz.T
+        S_rr = self.S_rr - self.S_rz @ G @ self.S_rz.T
+        return S_br, S_rr, self.S_bb - float(np.trace(self.S_bz @ G @ self.S_bz.T))
+
     @property
     def K(self) -> np.ndarray:
-        B = self.S_br - np.outer(self.S_b, self.S_r) / max(self.S_w, 1.0)
+        B = self._centred()[0]
         sigma = np.trace(B)
         K = np.empty((4, 4))
         K[:3, :3] = B + B.T - sigma * np.eye(3)
@@ -220,16 +250,15 @@ class CentredWahba:
         return quaternion_from_K(self.K)
 
     def _fit(self) -> tuple[np.ndarray, np.ndarray, float] | None:
-        """(C_b^n(0), centred Σ w r rᵀ, residual variance per axis), None before 4 pairs."""
-        n = self.n_obs
-        if n < 4:
+        """(C_b^n(0), centred Σ w r rᵀ, residual variance per axis), None before the fit has residual
+        degrees of freedom."""
+        n, m = self.n_obs, len(self.S_zz)
+        if 3 * n - 3 - 3 * m <= 0 or n < 4:
             return None
         C = dcm_from_quat(self.quaternion())          # C_b^n(0): b = C^T r + c
-        S_rr_c = self.S_rr - np.outer(self.S_r, self.S_r) / self.S_w
-        S_br_c = self.S_br - np.outer(self.S_b, self.S_r) / self.S_w
-        rss = (self.S_bb - float(self.S_b @ self.S_b) / self.S_w) - 2.0 * float(np.trace(C @ S_br_c)) + float(
-            np.trace(S_rr_c))
-        return C, S_rr_c, max(rss, 0.0) / (3 * n - 6)
+        S_br_c, S_rr_c, S_bb_c = self._centred()
+        rss = S_bb_c - 2.0 * float(np.trace(C @ S_br_c)) + float(np.trace(S_rr_c))
+        return C, S_rr_c, max(rss, 0.0) / (3 * n - 3 - 3 * m)
 
     def covariance(self) -> np.ndarray | None:
         """Covariance (3, 3) rad² of the estimate's rotation error in the reference (n0) axes, from the
@@ -241,15 +270,18 @@ class CentredWahba:
         _, S_rr_c, variance = fit
         return variance * np.linalg.inv(np.trace(S_rr_c) * np.eye(3) - S_rr_c)
 
-    def _consistent(self, b: np.ndarray, r: np.ndarray, w: float) -> bool:
+    def _consistent(self, b: np.ndarray, r: np.ndarray, w: float, z: np.ndarray) -> bool:
         C, _, variance = self._fit()
-        c = (self.S_b - C.T @ self.S_r) / self.S_w
-        e = b - C.T @ r - c
+        c = (self.S_bz - C.T @ self.S_rz) @ self._nuisance_inverse()     # (3, m): the nuisance vectors
+        e = b - C.T @ r - c @ z
         return w * float(e @ e) <= self.gate_chi2 * max(variance, 1.0)
 
 
 GATE_MIN_PAIRS = 20
 """Pairs the fit needs before it screens new ones (its residual variance means little before)."""
+GATE_REOPEN_PAIRS = 30
+"""Rejections in a row after which the screen lets as many pairs through (3 s of 10-Hz pairs: longer than a
+glitch)."""
 
 
 def make_solver(name: str, rho: float = 0.01) -> RecursiveK | CentredWahba:
