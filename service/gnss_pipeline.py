@@ -16,10 +16,10 @@ from __future__ import annotations
 import numpy as np
 
 from .align.coarse import InertialCoarseAlignment
-from .align.conventions import DEG, cross, dcm_from_quat
-from .align.earth import Site, earth_rate_n
+from .align.conventions import DEG, dcm_from_quat
+from .align.earth import Site
 from .align.gnss_aided import GNSS_COLUMNS, GnssPositionSource, GnssSource, GnssVelocitySource
-from .align.kalman import ErrorStateFilter, GnssPosition, GnssVelocity, enu_to_geodetic_step
+from .align.kalman import ErrorStateFilter, GnssPosition, GnssVelocity, antenna_lever_velocity, enu_to_geodetic_step
 from .align.sensor_model import SIGMA_UNKNOWN_DEG
 from .align.solvers import CentredWahba
 from .config import Config
@@ -122,9 +122,8 @@ class GnssAidedPipeline(KalmanStagePipeline):
             return
         C_b_n = dcm_from_quat(solution.q_b_n)
         antenna = np.r_[aid[:2] * DEG, aid[2]]
-        omega_eb_b = aid[6:9] - C_b_n.T @ earth_rate_n(antenna[0])
         lever = np.array(ad.gnss_lever_m)
-        V_n = aid[3:6] - C_b_n @ cross(omega_eb_b, lever)
+        V_n = aid[3:6] - antenna_lever_velocity(C_b_n, aid[6:9], antenna[0], lever)
         position = antenna - enu_to_geodetic_step(C_b_n @ lever, antenna)
         self.fine.start(C_b_n, C_b_b0, V_n, position, solution.level_sigma_deg * DEG,
                         solution.heading_sigma_deg * DEG, HANDOVER_SIGMA_FACTOR * ad.gnss_vel_std_mps,

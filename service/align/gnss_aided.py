@@ -3,27 +3,30 @@
 Both live in the inertial frame n0 (the navigation frame at the first fix's place, frozen in
 inertial space at the alignment start). GNSS gives the antenna's position and velocity;
 C_{n(t)}^{n0} = C_e^{n0} R_z(Ω t) C_n^e(L(t), λ(t)) follows from the fixes (the Earth turned by Ω t
-since the start). Integrals run from the first fix by the trapezoid rule over the observation
-epochs (:class:`RunningIntegral`); the GNSS values at an epoch are the track's linear
-interpolation between fixes (seed 004 eq. 26-28).
+since the start), and so does the inertial position R = C_e^{n0} R_z(Ω t) p^e, whose rate is
+dR/dt = C_n^{n0} V^n + ω_ie × R. Hence J(t) = ∫ C_n^{n0} V^n dτ = ΔR − ω_ie^{n0} × ∫ ΔR dτ − T ω_ie^{n0} × R_0
+exactly, T = t − t_first: integrals of the velocity come from positions, not from a trapezoid over
+fixes that may have gaps. The rest are trapezoids over the observation epochs
+(:class:`RunningIntegral`), or over every IMU sample (PIF's ∫ α_v); the GNSS values at an epoch are
+the track's linear interpolation between fixes (seed 004 eq. 26-28).
 
 Velocity integration formula (VIF): C_b0^n0 α_v(t) = β_v(t) with α_v = ∫ C_b^{b0} f^b dt (the core's
-α) and β_v = C_n^{n0} V^n(t) − V^n(0) + ∫ C_n^{n0} (ω_ie^n × V^n − g^n) dt.
+α) and β_v = C_n^{n0} V^n(t) − V^n(0) + ω_ie^{n0} × J + ∫ C_n^{n0} (−g^n) dt.
 
-Position integration formula (PIF, positions only): integrating VIF once more and dividing by the
-span T = t − t_first,
-  C_b0^n0 (1/T) ∫ α_v dτ = (1/T) [J(t) + ω_ie^{n0} × ∫ J dτ + ∫∫ g up dσ dτ] − V^n(0),
-with J(t) = ∫ C_n^{n0} V^n dτ = ΔR − ω_ie^{n0} × ∫ ΔR dτ − T ω_ie^{n0} × R_0 exactly, R the inertial
-position C_e^{n0} R_z(Ω t) p^e of the fixes (dR/dt = C_n^{n0} V^n + ω_ie × R). V^n(0) is a constant
-common to every pair, which the centred solver absorbs: no velocity is needed. Position noise
-enters divided by T, so early pairs are weighted down (:meth:`observation_variance`).
+Position integration formula (PIF, positions only): integrating VIF once more and dividing by T,
+  C_b0^n0 (1/T) ∫ α_v dτ = (1/T) [J(t) + ω_ie^{n0} × ∫ J dτ + ∫∫ g up dσ dτ] − V^n(0).
+V^n(0) is a constant common to every pair, which the centred solver absorbs: no velocity is needed.
+Whatever is fixed at the first fix (its position error, the lever arm there, α then) enters divided
+by T: the solver's drift term c₁/T absorbs it. Position noise enters divided by T too, so early
+pairs are weighted down (:meth:`GnssPositionSource.observation_variance`).
 
 Lever arm l^b (IMU to antenna, body axes), compensated exactly in both (the seed leaves it out):
-the antenna is C_b0^n0 C_b^{b0} l^b ahead of the IMU, and its velocity C_b0^n0 C_b^{b0} (ω_ib^b × l^b)
-(ω_ie × (C l) left out: 7e-5 m/s per metre). Both are known b0-axes vectors times the unknown
-attitude, so they move to the observation side: VIF b = α_v + C_b^{b0}(ω_ib^b × l^b); PIF
-b = (∫ α_v dτ + C_b^{b0} l^b)/T. Each pair is taken less its value at the first fix.
-ω_ib^b at an epoch is the gyro's rate the pipeline appends to the GNSS columns.
+the antenna is C_b0^n0 C_b^{b0} l^b ahead of the IMU in n0 axes, and its velocity over the Earth
+C_n^{n0} C_b^n (ω_eb^b × l^b) adds to C_n^{n0} V^n what C_b0^n0 C_b^{b0} (ω_ib^b × l^b) does, up to
+terms in Ω² (3e-6 m/s after 300 s). Both are known b0-axes vectors times the unknown attitude, so
+they move to the observation side: VIF b = α_v + C_b^{b0}(ω_ib^b × l^b); PIF b = (∫ α_v dτ +
+C_b^{b0} l^b)/T. ω_ib^b at an epoch is the gyro's rate the pipeline appends to the GNSS columns.
+Each pair is taken less its value at the first fix.
 """
 from __future__ import annotations
 

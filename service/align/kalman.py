@@ -46,9 +46,7 @@ BIAS_INSTABILITY_FRACTION = 0.1
 
 def enu_to_geodetic_step(d_enu_m: np.ndarray, position: np.ndarray) -> np.ndarray:
     """(Δlat rad, Δlon rad, Δh m) of a small ENU offset (3,) m at ``position`` (lat rad, lon rad, h m)."""
-    R_M, R_N = radii(position[0])
-    h = position[2]
-    return np.array([d_enu_m[1] / (R_M + h), d_enu_m[0] / ((R_N + h) * np.cos(position[0])), d_enu_m[2]])
+    return position_rate(d_enu_m, position[0], position[2])
 
 
 def geodetic_to_enu_step(d_position: np.ndarray, position: np.ndarray) -> np.ndarray:
@@ -301,6 +299,13 @@ class BodyVelocity:
         return value - h, H_core, H_extra, np.eye(3) * self.std_mps**2
 
 
+def antenna_lever_velocity(C_b_n: np.ndarray, omega_ib_b: np.ndarray, lat: float, lever_b: np.ndarray) -> np.ndarray:
+    """C_b^n (ω_eb^b × l^b) (3,) m/s: how much faster than the IMU an antenna at lever arm l^b (body axes, m)
+    moves over the Earth, from the gyro rate ω_ib^b (rad/s) at latitude ``lat`` (rad)."""
+    omega_eb_b = omega_ib_b - C_b_n.T @ earth_rate_n(lat)
+    return C_b_n @ cross(omega_eb_b, lever_b)
+
+
 class AntennaMeasurement:
     """A GNSS fix of an antenna at lever arm ``lever_b`` (IMU to antenna, body axes, m) with white noise
     ``std`` per ENU axis; the lever arm is known (no states of its own)."""
@@ -326,8 +331,7 @@ class GnssVelocity(AntennaMeasurement):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        omega_eb_b = value[3:6] - nav.C_b_n.T @ earth_rate_n(nav.position[0])
-        lever_velocity = nav.C_b_n @ cross(omega_eb_b, self.lever_b)
+        lever_velocity = antenna_lever_velocity(nav.C_b_n, value[3:6], nav.position[0], self.lever_b)
         H_core = np.zeros((3, CORE_STATES))
         H_core[:, PHI] = -skew(lever_velocity)
         H_core[:, DV] = -np.eye(3)
