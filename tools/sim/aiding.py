@@ -1,4 +1,5 @@
-"""Simulated aiding sensors on a moving vehicle: odometer / DVL body velocity (seed 003), GNSS (seed 004).
+"""Simulated aiding sensors on a moving vehicle: odometer / DVL body velocity (seed 003), GNSS (seed 004),
+a master INS (seed 002).
 
 A sensor sits at lever arm l^b from the IMU (body axes, m) and measures that point P:
 odometer: its velocity over ground in body axes, V_P^b = V^b + ω_eb^b × l^b with
@@ -14,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS
 from sinsalign.protocol.imu_log import write_header, write_rows
-from sinsalign.service.align.conventions import DEG, cross
+from sinsalign.service.align.conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec
 from sinsalign.service.align.earth import radii, transport_rate_n
 
 from .scenarios import Scenario
@@ -135,5 +136,30 @@ def write_gnss_log(path: str | Path, epochs: np.ndarray, lever_b: np.ndarray | N
     path = Path(path)
     with open(path, "w", encoding="utf-8") as f:
         write_header(f, keys, KINDS["gnss"].columns)
+        write_rows(f, epochs)
+    return path
+
+
+def master_epochs(scenario: Scenario, seed: int) -> np.ndarray:
+    """The master INS's output (N, 11): t, q (4, [w, x, y, z] of its C_bm^n), vE, vN, vU, lat_deg, lon_deg, h_m,
+    with the scenario's white attitude noise (a random small rotation per epoch) and velocity noise."""
+    m, vehicle = scenario.master, scenario.motion.vehicle
+    t = np.arange(1, round(scenario.duration_s * m.rate_hz) + 1) / m.rate_hz
+    rng = np.random.default_rng([seed, 6])
+    C_bm_n = vehicle.attitude(t)
+    if m.att_noise_deg:
+        C_bm_n = dcm_from_quat(quat_from_rotvec(m.att_noise_deg * DEG * rng.standard_normal((len(t), 3)))) @ C_bm_n
+    V_n = vehicle.velocity_n(t)[2] + m.vel_noise_mps * rng.standard_normal((len(t), 3))
+    lat, lon, h = np.moveaxis(vehicle.position(t), -1, 0)
+    return np.column_stack((t, quat_from_dcm(C_bm_n), V_n, lat / DEG, lon / DEG, h))
+
+
+def write_master_log(path: str | Path, epochs: np.ndarray, att_std_deg: float | None = None,
+                     vel_std_mps: float | None = None) -> Path:
+    """The pinned master-INS log: ``t,qw,qx,qy,qz,vE,vN,vU,lat_deg,lon_deg,h_m`` with its noise keys."""
+    keys = {k: v for k, v in (("att_std_deg", att_std_deg), ("vel_std_mps", vel_std_mps)) if v is not None}
+    path = Path(path)
+    with open(path, "w", encoding="utf-8") as f:
+        write_header(f, keys, KINDS["master"].columns)
         write_rows(f, epochs)
     return path

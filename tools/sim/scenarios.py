@@ -8,13 +8,13 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-from sinsalign.service.align.conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
+from sinsalign.service.align.conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2, dcm_from_euler
 from sinsalign.service.align.earth import Site
 from sinsalign.service.align.sensor_model import SensorGrade
 
 from .imu import ImuErrors
 from .motion import AngleProfile, AngularMotion, Sinusoid
-from .vehicle import VehicleMotion
+from .vehicle import MountedMotion, VehicleMotion
 
 
 @dataclass(frozen=True, slots=True)
@@ -40,6 +40,16 @@ class GnssSpec:
 
 
 @dataclass(frozen=True, slots=True)
+class MasterSpec:
+    """A simulated master INS (transfer alignment): its output rate and the white noise of its attitude
+    (deg per axis) and ENU velocity (m/s per axis)."""
+
+    rate_hz: float = 10.0
+    att_noise_deg: float = 0.002
+    vel_noise_mps: float = 0.02
+
+
+@dataclass(frozen=True, slots=True)
 class Scenario:
     """Everything needed to simulate one run, except the seed."""
 
@@ -56,6 +66,7 @@ class Scenario:
     random_bias_signs: bool = False
     """Each seed draws the sign of every axis's bias (a population of IMUs with biases of the stated size)."""
     gnss: GnssSpec | None = None
+    master: MasterSpec | None = None
 
     def for_seed(self, seed: int) -> Scenario:
         """The scenario as seed ``seed`` runs it (its own bias signs, if drawn)."""
@@ -70,8 +81,9 @@ class Scenario:
     def without_errors(self) -> Scenario:
         odometer = None if self.odometer is None else replace(self.odometer, noise_mps=0.0)
         gnss = None if self.gnss is None else replace(self.gnss, vel_noise_mps=0.0, pos_noise_m=0.0)
+        master = None if self.master is None else replace(self.master, att_noise_deg=0.0, vel_noise_mps=0.0)
         return replace(self, name=self.name + "-ideal", errors=ImuErrors(),
-                       grade=SensorGrade(1e-12, 1e-12, 1e-12, 1e-12), odometer=odometer, gnss=gnss)
+                       grade=SensorGrade(1e-12, 1e-12, 1e-12, 1e-12), odometer=odometer, gnss=gnss, master=master)
 
 
 def _swing(centre_deg: tuple[float, float, float], amp_deg: tuple[float, float, float],
@@ -100,9 +112,9 @@ def grade_of(errors: ImuErrors, rate_hz: float) -> SensorGrade:
 def _scenario(name: str, description: str, site: Site, motion: AngularMotion | VehicleMotion, errors: ImuErrors,
               rate_hz: float, duration_s: float, windows: tuple[tuple[float, float], ...],
               odometer: OdometerSpec | None = None, random_bias_signs: bool = False,
-              gnss: GnssSpec | None = None) -> Scenario:
+              gnss: GnssSpec | None = None, master: MasterSpec | None = None) -> Scenario:
     return Scenario(name, description, site, motion, errors, grade_of(errors, rate_hz), rate_hz, duration_s,
-                    windows, odometer, random_bias_signs, gnss)
+                    windows, odometer, random_bias_signs, gnss, master)
 
 
 SEED003_SITE = Site(45.68 * DEG, 126.63 * DEG, 150.0)
@@ -196,6 +208,30 @@ SCENARIOS["seed004"] = _scenario(
     SEED004_SITE, seed004_flight(), replace(_errors(0.01, 50.0), gyro_arw_rad_rts=0.1 / 60.0 * DRH_TO_RRS,
                                             acc_vrw_ms_rts=500.0 * UG_TO_MS2),
     100.0, 300.0, ((10.0, 10.0), (60.0, 60.0), (300.0, 300.0)), random_bias_signs=True, gnss=GnssSpec())
+
+
+SEED002_SITE = Site(32.5 * DEG, 135.0 * DEG, 500.0)
+SEED002_MOUNT_DEG = (20.0, 20.0, 20.0)
+
+
+def seed002_flight(mount_deg: tuple[float, float, float] = SEED002_MOUNT_DEG) -> MountedMotion:
+    """Seed 002's transfer-alignment run: 50 m/s north, level, with three 30° wing rocks (roll up in 2.5 s,
+    back in 2.5 s, from 1, 21 and 41 s), 60 s; the slave IMU mounted (heading, pitch, roll) ``mount_deg`` off
+    the master (C_bs^bm from those Euler angles)."""
+    roll = AngleProfile(0.0, steps=((1.0, 30 * DEG), (5.0, 0.0), (21.0, 30 * DEG), (25.0, 0.0), (41.0, 30 * DEG),
+                                    (45.0, 0.0)), transition_s=2.5)
+    vehicle = VehicleMotion(SEED002_SITE, 60.0, AngularMotion(roll=roll), AngleProfile(50.0))
+    M = dcm_from_euler(*(np.array(mount_deg) * DEG))
+    return MountedMotion(vehicle, tuple(tuple(float(v) for v in row) for row in M))
+
+
+SCENARIOS["seed002"] = _scenario(
+    "seed002", "seed 002 transfer alignment: L=32.5°, 500 m, 50 m/s north, three 30° wing rocks, 60 s, 100 Hz; "
+    "slave mounted 20°/20°/20° off the master; slave gyro 10°/h bias + 0.1°/√h, acc 5 mg bias + 50 µg/√Hz (bias "
+    "signs drawn per seed and axis); master at 10 Hz, attitude 0.002° and velocity 0.02 m/s white noise",
+    SEED002_SITE, seed002_flight(), replace(_errors(10.0, 5000.0, gyro_arw_deg_rth=0.1),
+                                            acc_vrw_ms_rts=50.0 * UG_TO_MS2),
+    100.0, 60.0, ((10.0, 10.0), (60.0, 60.0)), random_bias_signs=True, master=MasterSpec())
 
 
 def get_scenario(name: str) -> Scenario:

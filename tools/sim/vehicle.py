@@ -98,3 +98,39 @@ class VehicleMotion:
         C_n_b = np.swapaxes(C_b_n, -1, -2)
         omega_ib_b = omega_nb_b + (C_n_b @ (omega_ie_n + omega_en_n)[..., None])[..., 0]
         return C_b_n, omega_ib_b, (C_n_b @ f_n[..., None])[..., 0]
+
+
+@dataclass(frozen=True)
+class MountedMotion:
+    """A second IMU (the slave of transfer alignment, seed 002) bolted to a vehicle at a fixed mounting
+    C_bs^bm (slave to master body axes), at the master's own point (no lever arm):
+    C_bs^n = C_bm^n C_bs^bm, ω_ib^bs = C_bm^bs ω_ib^bm, f^bs = C_bm^bs f^bm. ``vehicle`` is the master's motion."""
+
+    vehicle: VehicleMotion
+    C_bs_bm: tuple[tuple[float, float, float], ...]
+
+    @property
+    def start(self) -> Site:
+        return self.vehicle.start
+
+    @property
+    def duration_s(self) -> float:
+        return self.vehicle.duration_s
+
+    @property
+    def mounting(self) -> np.ndarray:
+        """C_bs^bm (3, 3)."""
+        return np.array(self.C_bs_bm)
+
+    def attitude(self, t: np.ndarray) -> np.ndarray:
+        """The slave's C_bs^n (…, 3, 3)."""
+        return self.vehicle.attitude(t) @ self.mounting
+
+    def position(self, t: np.ndarray) -> np.ndarray:
+        return self.vehicle.position(t)
+
+    def body_rate_and_force(self, site: Site, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The slave's C_bs^n, ω_ib^bs (rad/s) and f^bs (m/s²) at times t: the master's turned by the mounting."""
+        C_bm_n, omega_ib_bm, f_bm = self.vehicle.body_rate_and_force(site, t)
+        M = self.mounting
+        return C_bm_n @ M, omega_ib_bm @ M, f_bm @ M
