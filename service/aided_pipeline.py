@@ -20,6 +20,7 @@ from .config import Config, ConfigError
 from .gnss_pipeline import GnssAidedPipeline
 from .kalman_stage import KalmanStagePipeline
 from .pipeline import AlignmentPipeline
+from .transfer_pipeline import TransferPipeline
 
 HANDOVER_VELOCITY_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one odometer reading: its σ is this many times the reading's."""
@@ -105,7 +106,7 @@ class VelocityAidedPipeline(KalmanStagePipeline):
 
 
 AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline,
-               frozenset({"gnss"}): GnssAidedPipeline}
+               frozenset({"gnss"}): GnssAidedPipeline, frozenset({"master"}): TransferPipeline}
 """Which pipeline the aids given select (``replay --aid``, the daemon's ``aid/<kind>`` inputs)."""
 
 
@@ -118,6 +119,6 @@ def build_pipeline(config: Config, site: Site, rate_hz: float, datasheet: dict[s
         raise ConfigError(f"aids {', '.join(sorted(kinds))}: no aided mode for this combination yet (known: {known})")
     if not kinds:
         return AlignmentPipeline(config, site, rate_hz, datasheet, live)
-    if kinds == {"gnss"}:
-        return GnssAidedPipeline(config, site, rate_hz, datasheet, live)
+    if kinds in ({"gnss"}, {"master"}):
+        return AIDED_MODES[kinds](config, site, rate_hz, datasheet, live)
     return VelocityAidedPipeline(config, site, rate_hz, datasheet, live, (aids or {}).get("odo"))

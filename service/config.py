@@ -74,6 +74,10 @@ class AidingConfig:
     m; a GNSS log's ``# lever_*_m`` keys override it), the coarse stage's formula (``vif`` velocity
     integration, ``pif`` position integration: positions only), the fixes' noise per ENU axis (a log's
     ``vel_std_mps`` / ``pos_std_m`` override), and when the Kalman stage takes over (s of alignment).
+    Master INS (transfer alignment): latency, its attitude and velocity noise (a log's ``att_std_deg`` /
+    ``vel_std_mps`` override), and the switch from the large-angle phase to the Kalman stage: at
+    ``master_handover_s`` if set (the seed's fixed 10 s), else once phase 1's σ is at most
+    ``master_handover_sigma_deg``.
     Coarse: the multistage window (s, bounded store of window / obs interval rows), its levels, how
     often they are re-run, the solver of each level. ``max_gap_s``: epochs further apart are not
     interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
@@ -96,6 +100,11 @@ class AidingConfig:
     gnss_vel_std_mps: float = 0.1
     gnss_pos_std_m: float = 2.0
     gnss_handover_s: float = 30.0
+    master_latency_s: float = 0.0
+    master_att_std_deg: float = 0.001
+    master_vel_std_mps: float = 0.005
+    master_handover_s: float = 0.0
+    master_handover_sigma_deg: float = 0.2
     window_s: float = 120.0
     levels: int = 10
     relevel_interval_s: float = 1.0
@@ -257,6 +266,11 @@ def _check(config: Config) -> Config:
         ("aiding.gnss_vel_std_mps", ad.gnss_vel_std_mps > 0.0, "must be > 0"),
         ("aiding.gnss_pos_std_m", ad.gnss_pos_std_m > 0.0, "must be > 0"),
         ("aiding.gnss_handover_s", 0.0 <= ad.gnss_handover_s <= 3600.0, "must be in [0, 3600]"),
+        ("aiding.master_latency_s", 0.0 <= ad.master_latency_s <= 10.0, "must be in [0, 10]"),
+        ("aiding.master_att_std_deg", ad.master_att_std_deg > 0.0, "must be > 0"),
+        ("aiding.master_vel_std_mps", ad.master_vel_std_mps > 0.0, "must be > 0"),
+        ("aiding.master_handover_s", 0.0 <= ad.master_handover_s <= 3600.0, "must be in [0, 3600] (0: by σ)"),
+        ("aiding.master_handover_sigma_deg", ad.master_handover_sigma_deg > 0.0, "must be > 0"),
         ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
         ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),
         ("aiding.window_s", 1.0 <= ad.window_s <= 3600.0, "must be in [1, 3600]"),

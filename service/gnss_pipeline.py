@@ -8,8 +8,7 @@ From ``aiding.gnss_handover_s`` on (once the coarse heading σ is at most
 ``aiding.handover_heading_sigma_deg``) the fine stage is the error-state Kalman filter with GNSS
 velocity and position measurements (lever arm in both), gated by χ²: it rides through outages on
 the IMU alone, with σ growing. The gyro rate each fix needs for the lever arm is appended to the GNSS
-columns here, from the increments (1.5 Δθ_k − 0.5 Δθ_{k−1}) / T: the rate at the sample's end,
-second-order accurate.
+columns (:class:`GyroRateAidPipeline`).
 """
 from __future__ import annotations
 
@@ -17,13 +16,11 @@ import numpy as np
 
 from .align.coarse import InertialCoarseAlignment
 from .align.conventions import DEG, dcm_from_quat
-from .align.earth import Site
 from .align.gnss_aided import GNSS_COLUMNS, GnssPositionSource, GnssSource, GnssVelocitySource
 from .align.kalman import ErrorStateFilter, GnssPosition, GnssVelocity, antenna_lever_velocity, enu_to_geodetic_step
 from .align.sensor_model import SIGMA_UNKNOWN_DEG
 from .align.solvers import CentredWahba
-from .config import Config
-from .kalman_stage import KalmanStagePipeline
+from .kalman_stage import GyroRateAidPipeline
 
 PAIR_GATE_CHI2 = 36.0
 """The coarse stage's screen of each pair: |e|²/μ over the fit's residual variance (6σ in 3-D, a false alarm
@@ -60,16 +57,11 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
                 min(float(factor * level / DEG), SIGMA_UNKNOWN_DEG))
 
 
-class GnssAidedPipeline(KalmanStagePipeline):
+class GnssAidedPipeline(GyroRateAidPipeline):
     """Alignment in flight with GNSS fixes (6 aiding values per sample: lat_deg, lon_deg, h_m, V^n)."""
 
     aid_width = GNSS_COLUMNS
     checks_translation = False
-
-    def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
-                 live: bool = False) -> None:
-        self._dtheta_last = np.zeros(3)
-        super().__init__(config, site, rate_hz, datasheet, live)
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a, ad = self.config.alignment, self.config.aiding
@@ -87,16 +79,6 @@ class GnssAidedPipeline(KalmanStagePipeline):
         lever = np.array(ad.gnss_lever_m)
         return ErrorStateFilter(self.grade, [GnssVelocity(ad.gnss_vel_std_mps, lever),
                                              GnssPosition(ad.gnss_pos_std_m, lever)], ad.gate_chi2)
-
-    def _aid(self, samples: np.ndarray) -> np.ndarray:
-        dtheta = samples[:, 1:4]
-        previous = np.concatenate((self._dtheta_last[None], dtheta[:-1]))
-        rates = (1.5 * dtheta - 0.5 * previous) / self.sample_period_s
-        return np.hstack((samples[:, 7:], rates))
-
-    def _process_blocks(self, samples: np.ndarray, records: list) -> None:
-        super()._process_blocks(samples, records)
-        self._dtheta_last = samples[-1, 1:4].copy()
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
                     dt_s: float, aid: np.ndarray | None) -> None:

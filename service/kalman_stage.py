@@ -7,6 +7,8 @@ attitude and its σ come from the filter, and ``aligned`` means its heading σ i
 """
 from __future__ import annotations
 
+import numpy as np
+
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
 from .align.conventions import dcm_from_quat, quat_from_dcm
@@ -24,7 +26,27 @@ class KalmanStagePipeline(AlignmentPipeline):
             return super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)
         threshold = self.config.alignment.converged_heading_sigma_deg
         sigma = self.fine.sigma
-        solution = AttitudeSolution(t_sample, quat_from_dcm(self.fine.attitude(dcm_from_quat(q_b_b0))),
-                                    sigma.heading_deg, sigma.level_deg, coarse.solver.rho, coarse.solver.trace_P,
-                                    coarse.solver.n_obs)
+        C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
+        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
+                                    coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
         return result_record(solution, t_epoch, "aligned" if sigma.heading_deg <= threshold else "fine", threshold)
+
+
+class GyroRateAidPipeline(KalmanStagePipeline):
+    """A Kalman-stage pipeline whose aid columns get the gyro rate ω_ib^b (3, rad/s) appended, from the
+    increments (1.5 Δθ_k − 0.5 Δθ_{k−1}) / T: the rate at the sample's end, second-order accurate (lever
+    arms, rotation pairs)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        self._dtheta_last = np.zeros(3)
+        super().__init__(*args, **kwargs)
+
+    def _aid(self, samples: np.ndarray) -> np.ndarray:
+        dtheta = samples[:, 1:4]
+        previous = np.concatenate((self._dtheta_last[None], dtheta[:-1]))
+        rates = (1.5 * dtheta - 0.5 * previous) / self.sample_period_s
+        return np.hstack((samples[:, 7:], rates))
+
+    def _process_blocks(self, samples: np.ndarray, records: list) -> None:
+        super()._process_blocks(samples, records)
+        self._dtheta_last = samples[-1, 1:4].copy()

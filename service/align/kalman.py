@@ -29,7 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from .compass import rotation_matrix
-from .conventions import DEG, cross, quat_from_dcm, rotvec_from_quat, skew
+from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, rotvec_from_quat, skew
 from .earth import earth_rate_n, normal_gravity, position_rate, radii, transport_rate_n
 from .sensor_model import AttitudeSigma, SensorGrade
 
@@ -244,9 +244,14 @@ class ErrorStateFilter:
         self._inject()
         return True
 
-    def attitude(self, C_b_b0: np.ndarray) -> np.ndarray:
-        """C_b^n (3, 3) of the body attitude C_b^{b0} (between control steps C_n^{n0} moves < 1e-5 rad)."""
-        return self.C_n_n0.T @ self.C_b0_n0 @ C_b_b0
+    def attitude(self, C_b_b0: np.ndarray, since_step_s: float = 0.0) -> np.ndarray:
+        """C_b^n (3, 3) of the body attitude C_b^{b0} taken ``since_step_s`` after the last control step (the
+        navigation frame turns on meanwhile: 7e-6 rad in a 0.1-s step, at the Earth rate alone)."""
+        C_n_n0 = self.C_n_n0
+        if since_step_s:
+            omega_ie, omega_en = self._rates(self.V_n)
+            C_n_n0 = C_n_n0 @ rotation_matrix((omega_ie + omega_en) * since_step_s)
+        return C_n_n0.T @ self.C_b0_n0 @ C_b_b0
 
     @property
     def sigma(self) -> AttitudeSigma:
@@ -308,11 +313,14 @@ def antenna_lever_velocity(C_b_n: np.ndarray, omega_ib_b: np.ndarray, lat: float
 
 class AntennaMeasurement:
     """A GNSS fix of an antenna at lever arm ``lever_b`` (IMU to antenna, body axes, m) with white noise
-    ``std`` per ENU axis; the lever arm is known (no states of its own)."""
+    ``std`` per ENU axis; the lever arm is known (no states of its own). ``name`` overrides the kind's
+    (a master INS's velocity is a fix of the same form)."""
 
     extra_states = 0
 
-    def __init__(self, std: float, lever_b: np.ndarray | None = None) -> None:
+    def __init__(self, std: float, lever_b: np.ndarray | None = None, name: str | None = None) -> None:
+        if name is not None:
+            self.name = name
         self.std = std
         self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
 
@@ -352,3 +360,36 @@ class GnssPosition(AntennaMeasurement):
         H_core[:, POS] = -np.eye(3)
         innovation = geodetic_to_enu_step(value[:3] - nav.position, nav.position) - lever_n
         return innovation, H_core, np.zeros((3, 0)), np.eye(3) * self.std**2
+
+
+class MasterAttitude:
+    """Attitude matching against a master INS (transfer alignment, seed 002), with the mounting as extra states.
+
+    The mounting is M = C_bs^bm = M_ref exp([μ×]): ``M_ref`` from the large-angle phase (set before the
+    filter starts), μ (3, rad, slave body axes) the filter's whole-value correction. The value is the
+    master's quaternion of C_bm^n; the innovation is the small rotation E = C_bm^n M_ref exp([μ̂×]) Ĉ_bs^{nT}
+    ≈ I + [(φ + C_bs^n (μ̂ − μ))×], so H_φ = I and H_μ = −C_bs^n. std_rad : the master's attitude noise per
+    axis; mount_sigma_rad : prior 1-sigma of μ per axis.
+    """
+
+    name = "master_att"
+    extra_states = 3
+
+    def __init__(self, std_rad: float, mount_sigma_rad: float = 0.01) -> None:
+        self.std_rad = std_rad
+        self.mount_sigma_rad = mount_sigma_rad
+        self.M_ref = np.eye(3)
+
+    def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros(3), np.full(3, self.mount_sigma_rad)
+
+    def mounting(self, mu: np.ndarray) -> np.ndarray:
+        """C_bs^bm (3, 3) of the extra states μ."""
+        return self.M_ref @ rotation_matrix(mu)
+
+    def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        E = dcm_from_quat(value[:4]) @ self.mounting(extra) @ nav.C_b_n.T
+        H_core = np.zeros((3, CORE_STATES))
+        H_core[:, PHI] = np.eye(3)
+        return rotvec_from_quat(quat_from_dcm(E)), H_core, -nav.C_b_n, np.eye(3) * self.std_rad**2

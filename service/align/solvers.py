@@ -249,13 +249,13 @@ class CentredWahba:
             return np.array([1.0, 0.0, 0.0, 0.0])
         return quaternion_from_K(self.K)
 
-    def _fit(self) -> tuple[np.ndarray, np.ndarray, float] | None:
-        """(C_b^n(0), centred Σ w r rᵀ, residual variance per axis), None before the fit has residual
-        degrees of freedom."""
+    def _fit(self, C: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, float] | None:
+        """(C_b^n(0), centred Σ w r rᵀ, residual variance per axis) of this fit's attitude (or of ``C``),
+        None before the fit has residual degrees of freedom."""
         n, m = self.n_obs, len(self.S_zz)
         if 3 * n - 3 - 3 * m <= 0 or n < 4:
             return None
-        C = dcm_from_quat(self.quaternion())          # C_b^n(0): b = C^T r + c
+        C = dcm_from_quat(self.quaternion()) if C is None else C          # C_b^n(0): b = C^T r + c
         S_br_c, S_rr_c, S_bb_c = self._centred()
         rss = S_bb_c - 2.0 * float(np.trace(C @ S_br_c)) + float(np.trace(S_rr_c))
         return C, S_rr_c, max(rss, 0.0) / (3 * n - 3 - 3 * m)
@@ -275,6 +275,64 @@ class CentredWahba:
         c = (self.S_bz - C.T @ self.S_rz) @ self._nuisance_inverse()     # (3, m): the nuisance vectors
         e = b - C.T @ r - c @ z
         return w * float(e @ e) <= self.gate_chi2 * max(variance, 1.0)
+
+
+class GroupedWahba:
+    """One attitude from groups of pairs in different units (m/s, rad, …), each a weighted
+    :class:`CentredWahba` with its own constant: the losses add, so the Davenport matrices do.
+
+    ``prepare(b, r, mu, group)`` tags each pair with its group's index; ``fold`` sends it there.
+    The covariance sums each group's information over its own residual variance (under the joint
+    attitude). Same interface as the other solvers.
+    """
+
+    solver = "grouped"
+
+    def __init__(self, groups: int) -> None:
+        self.groups = [CentredWahba(weighted=True) for _ in range(groups)]
+        self.rho = 1.0
+        self.trace_P = float("nan")
+        self.rejected = 0
+
+    @property
+    def n_obs(self) -> int:
+        return sum(g.n_obs for g in self.groups)
+
+    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray, group: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """(w b rᵀ (M, 3, 3), [b, r, w, 1, group] (M, 9)) of M pairs, for :meth:`fold`."""
+        outer, pairs = self.groups[0].prepare(b, r, mu)
+        return outer, np.column_stack((pairs, group))
+
+    def fold(self, outer: np.ndarray, pairs: np.ndarray) -> None:
+        """Each pair into its group, in order (same bits however grouped)."""
+        for k in range(len(pairs)):
+            self.groups[int(pairs[k, -1])].fold(outer[k:k + 1], pairs[k:k + 1, :-1])
+        self.rho = 1.0 / max(self.n_obs, 1)
+
+    @property
+    def K(self) -> np.ndarray:
+        return sum(g.K for g in self.groups)
+
+    def quaternion(self) -> np.ndarray:
+        """Current estimate of C_b^n(0) as [w, x, y, z]; identity before two observations."""
+        if self.n_obs < 2:
+            return np.array([1.0, 0.0, 0.0, 0.0])
+        return quaternion_from_K(self.K)
+
+    def covariance(self) -> np.ndarray | None:
+        """Covariance (3, 3) rad² of the joint estimate's rotation error in the reference axes: the inverse of
+        Σ information_g / residual variance_g over the groups that have residual degrees of freedom."""
+        C = dcm_from_quat(self.quaternion())
+        information = np.zeros((3, 3))
+        for g in self.groups:
+            fit = g._fit(C)
+            if fit is not None:
+                _, S_rr_c, variance = fit
+                information += (np.trace(S_rr_c) * np.eye(3) - S_rr_c) / max(variance, 1e-30)
+        if not information.any():
+            return None
+        return np.linalg.inv(information + 1e-30 * np.eye(3))
 
 
 GATE_MIN_PAIRS = 20

@@ -45,8 +45,8 @@ class MasterSpec:
     (deg per axis) and ENU velocity (m/s per axis)."""
 
     rate_hz: float = 10.0
-    att_noise_deg: float = 0.002
-    vel_noise_mps: float = 0.02
+    att_noise_deg: float = 0.001
+    vel_noise_mps: float = 0.005
 
 
 @dataclass(frozen=True, slots=True)
@@ -228,7 +228,7 @@ def seed002_flight(mount_deg: tuple[float, float, float] = SEED002_MOUNT_DEG) ->
 SCENARIOS["seed002"] = _scenario(
     "seed002", "seed 002 transfer alignment: L=32.5°, 500 m, 50 m/s north, three 30° wing rocks, 60 s, 100 Hz; "
     "slave mounted 20°/20°/20° off the master; slave gyro 10°/h bias + 0.1°/√h, acc 5 mg bias + 50 µg/√Hz (bias "
-    "signs drawn per seed and axis); master at 10 Hz, attitude 0.002° and velocity 0.02 m/s white noise",
+    "signs drawn per seed and axis); master at 10 Hz, attitude 0.001° and velocity 0.005 m/s white noise",
     SEED002_SITE, seed002_flight(), replace(_errors(10.0, 5000.0, gyro_arw_deg_rth=0.1),
                                             acc_vrw_ms_rts=50.0 * UG_TO_MS2),
     100.0, 60.0, ((10.0, 10.0), (60.0, 60.0)), random_bias_signs=True, master=MasterSpec())

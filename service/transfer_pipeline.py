@@ -1,0 +1,136 @@
+"""The transfer-alignment pipeline (seed 002, dual model): the same pipeline, other parts.
+
+Phase 1 (``coarse``) is the core's inertial-frame stage with the master source
+(service/align/transfer.py): velocity and attitude pairs r = M b solved in closed form for the
+mounting M = C_bs^bm, whatever its size. Phase 2 (``fine`` → ``aligned``) is the same error-state
+Kalman filter as the other aided modes, with velocity matching (the master's velocity, a fix of the
+GNSS velocity's form) and attitude matching (:class:`~.align.kalman.MasterAttitude`, the mounting
+as extra states), from the first control step at which phase 1's σ is within
+``aiding.master_handover_sigma_deg`` (or at ``aiding.master_handover_s``, the seed's fixed 10 s).
+The slave's attitude is the output; :meth:`TransferPipeline.mounting` gives M with its σ.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .align.coarse import InertialCoarseAlignment
+from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
+from .align.kalman import ErrorStateFilter, GnssVelocity, MasterAttitude
+from .align.sensor_model import SIGMA_UNKNOWN_DEG
+from .align.solvers import GroupedWahba
+from .align.transfer import MASTER_COLUMNS, MasterSource
+from .kalman_stage import GyroRateAidPipeline
+
+PHASE1_SIGMA_FACTOR = 1.5
+"""The fit's σ assumes white residuals; the pairs' errors are integrated biases (see the README's table)."""
+HANDOVER_SIGMA_FACTOR = 3.0
+"""The Kalman stage starts with V^n from one master epoch: its σ is this many times the stated noise."""
+
+
+class MasterCoarseAlignment(InertialCoarseAlignment):
+    """Phase 1: the grouped solver's estimate is the mounting M; the attitude is X = P_f M S_fᵀ (C_bs0^{n0})."""
+
+    source: MasterSource
+
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        due, outer, pairs = super().observe(elapsed_s, q_b_b0, alpha, aid)
+        return np.repeat(due, 2), outer, pairs            # two pairs per epoch
+
+    def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.solver.prepare(b, r, self.source.observation_variance(elapsed_s),
+                                   self.source.pair_groups(len(elapsed_s)))
+
+    @property
+    def mounting(self) -> np.ndarray:
+        """The estimate of C_bs^bm (3, 3)."""
+        return dcm_from_quat(self.solver.quaternion())
+
+    @property
+    def q_b_n0(self) -> np.ndarray:
+        return quat_from_dcm(self.source.C_b0_n0(self.mounting))
+
+    def sigma(self, elapsed_s: float) -> tuple[float, float]:
+        """1-sigma (heading, level) in degrees of the slave's attitude: the mounting's (the fit's covariance
+        in the master's axes, turned into n0) and the slave's gyro drift since the start."""
+        covariance = self.solver.covariance()
+        if covariance is None:
+            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+        P = self.source.P_first
+        covariance = PHASE1_SIGMA_FACTOR**2 * (P @ covariance @ P.T)
+        drift2 = (self.grade.gyro_bias_rad_s * max(elapsed_s, 0.0)) ** 2
+        heading = np.sqrt(covariance[2, 2] + drift2)
+        level = np.sqrt(0.5 * (covariance[0, 0] + covariance[1, 1]) + drift2)
+        return min(float(heading / DEG), SIGMA_UNKNOWN_DEG), min(float(level / DEG), SIGMA_UNKNOWN_DEG)
+
+
+class TransferPipeline(GyroRateAidPipeline):
+    """Transfer alignment of a slave IMU against a master INS (10 aiding values per sample: the master's
+    quaternion of C_bm^n, V^n ENU m/s, lat_deg, lon_deg, h_m)."""
+
+    aid_width = MASTER_COLUMNS
+    checks_translation = False
+
+    def _make_coarse(self) -> InertialCoarseAlignment:
+        a, ad = self.config.alignment, self.config.aiding
+        source = MasterSource(self.site, ad.master_att_std_deg * DEG, ad.master_vel_std_mps, self.grade.gyro_bias_rad_s,
+                              self.grade.acc_bias_ms2)
+        return MasterCoarseAlignment(source, self.grade, GroupedWahba(2), self.sample_period_s, a.obs_interval_s,
+                                     a.disturbance_velocity_mps)
+
+    def _make_fine(self) -> ErrorStateFilter | None:
+        if not self.config.fine.enabled:
+            return None
+        ad = self.config.aiding
+        return ErrorStateFilter(self.grade, [GnssVelocity(ad.master_vel_std_mps, name="master_vel"),
+                                             MasterAttitude(ad.master_att_std_deg * DEG)], ad.gate_chi2)
+
+    def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
+                    dt_s: float, aid: np.ndarray | None) -> None:
+        """Phase 2's prediction and matching per control step; before it, the switch from phase 1. ``aid``:
+        the master's 10 values at the step's end, then the slave's gyro rate (3, rad/s)."""
+        if self.fine is None:
+            return
+        C_b_b0 = dcm_from_quat(q_b_b0)
+        aided = aid is not None and bool(np.isfinite(aid).all())
+        if self.fine.active:
+            self.fine.predict(dalpha, dt_s, C_b_b0)
+            if aided:
+                self.fine.update("master_vel", np.r_[aid[4:7], aid[10:13]])
+                self.fine.update("master_att", aid[:4])
+            return
+        ad = self.config.aiding
+        if not aided:
+            return
+        solution = self.coarse.solution_at(t_end, q_b_b0)
+        sigma_deg = max(solution.heading_sigma_deg, solution.level_sigma_deg)
+        due = elapsed_s + 1e-9 >= ad.master_handover_s if ad.master_handover_s > 0.0 else (
+            sigma_deg <= ad.master_handover_sigma_deg)
+        if not due or solution.heading_sigma_deg > ad.handover_heading_sigma_deg:
+            return
+        attitude: MasterAttitude = self.fine.measurements["master_att"]
+        attitude.M_ref = self.coarse.mounting
+        attitude.mount_sigma_rad = sigma_deg * DEG
+        C_b_n = dcm_from_quat(aid[:4]) @ attitude.M_ref         # the master's attitude now, through the mounting
+        position = np.r_[np.radians(aid[7:9]), aid[9]]
+        self.fine.start(C_b_n, C_b_b0, aid[4:7], position, sigma_deg * DEG, sigma_deg * DEG,
+                        HANDOVER_SIGMA_FACTOR * ad.master_vel_std_mps, velocity_from_attitude=False)
+
+    def mounting(self) -> tuple[np.ndarray, float]:
+        """(C_bs^bm (3, 3), its 1-sigma in degrees, the largest axis): phase 2's once it runs, else phase 1's."""
+        if self.fine is not None and self.fine.active:
+            attitude: MasterAttitude = self.fine.measurements["master_att"]
+            mu = self.fine.extra("master_att")
+            sigma = float(np.sqrt(np.max(np.diag(self.fine.P)[-3:]))) / DEG
+            return attitude.mounting(mu), sigma
+        covariance = self.coarse.solver.covariance()
+        sigma = SIGMA_UNKNOWN_DEG if covariance is None else float(np.sqrt(np.max(np.diag(covariance)))) / DEG
+        return self.coarse.mounting, PHASE1_SIGMA_FACTOR * sigma
+
+    def aiding_counters(self) -> dict[str, int]:
+        """Phase-1 epochs without the master, and phase 2's accepted and gated-out velocity and attitude epochs."""
+        counters = {"master_unaided_observations": self.coarse.unaided_observations}
+        if self.fine is not None:
+            for name, c in self.fine.counters.items():
+                counters |= {f"{name}_accepted": c.accepted, f"{name}_rejected": c.rejected}
+        return counters
