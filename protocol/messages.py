@@ -27,7 +27,7 @@ NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_publish
                         "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames",
                         "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
                         "gnss_vel_accepted", "gnss_pos_accepted", "master_epochs", "master_unaided_queries",
-                        "master_accepted"})
+                        "master_vel_accepted", "master_att_accepted"})
 """Status counters that count work, not faults; every other counter counts a drop or a fault."""
 
 

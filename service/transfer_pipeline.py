@@ -50,18 +50,28 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
     def q_b_n0(self) -> np.ndarray:
         return quat_from_dcm(self.source.C_b0_n0(self.mounting))
 
-    def sigma(self, elapsed_s: float) -> tuple[float, float]:
-        """1-sigma (heading, level) in degrees of the slave's attitude: the mounting's (the fit's covariance
-        in the master's axes, turned into n0) and the slave's gyro drift since the start."""
+    def noise_sigma(self, elapsed_s: float) -> tuple[float, float] | None:
+        """1-sigma (heading, level) in rad of the slave's attitude from the fit's noise alone: the mounting's
+        covariance in the master's axes turned into n0, and the slave's gyro drift since the start; None
+        before the fit has residual degrees of freedom."""
         covariance = self.solver.covariance()
         if covariance is None:
-            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+            return None
         P = self.source.P_first
         covariance = PHASE1_SIGMA_FACTOR**2 * (P @ covariance @ P.T)
         drift2 = (self.grade.gyro_bias_rad_s * max(elapsed_s, 0.0)) ** 2
-        heading = np.sqrt(covariance[2, 2] + drift2)
-        level = np.sqrt(0.5 * (covariance[0, 0] + covariance[1, 1]) + drift2)
-        return min(float(heading / DEG), SIGMA_UNKNOWN_DEG), min(float(level / DEG), SIGMA_UNKNOWN_DEG)
+        return float(np.sqrt(covariance[2, 2] + drift2)), float(np.sqrt(0.5 * (covariance[0, 0] + covariance[1, 1])
+                                                                         + drift2))
+
+    def sigma(self, elapsed_s: float) -> tuple[float, float]:
+        """1-sigma (heading, level) in degrees: the noise part, and in level the accelerometer bias's tilt ∇/g
+        (the velocity pairs cannot tell a bias from a tilt; the Kalman stage can, once the body rolls)."""
+        noise = self.noise_sigma(elapsed_s)
+        if noise is None:
+            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+        heading, level = noise
+        level = np.hypot(level, self.grade.acc_bias_ms2 / self.source.site.gravity)
+        return min(heading / DEG, SIGMA_UNKNOWN_DEG), min(float(level) / DEG, SIGMA_UNKNOWN_DEG)
 
 
 class TransferPipeline(GyroRateAidPipeline):
@@ -102,18 +112,22 @@ class TransferPipeline(GyroRateAidPipeline):
         ad = self.config.aiding
         if not aided:
             return
-        solution = self.coarse.solution_at(t_end, q_b_b0)
-        sigma_deg = max(solution.heading_sigma_deg, solution.level_sigma_deg)
+        noise = self.coarse.noise_sigma(elapsed_s)
+        if noise is None:
+            return
+        # the switch looks at the fit's noise alone (the bias floor stays until the Kalman stage separates it)
         due = elapsed_s + 1e-9 >= ad.master_handover_s if ad.master_handover_s > 0.0 else (
-            sigma_deg <= ad.master_handover_sigma_deg)
+            max(noise) <= ad.master_handover_sigma_deg * DEG)
+        solution = self.coarse.solution_at(t_end, q_b_b0)
         if not due or solution.heading_sigma_deg > ad.handover_heading_sigma_deg:
             return
         attitude: MasterAttitude = self.fine.measurements["master_att"]
         attitude.M_ref = self.coarse.mounting
-        attitude.mount_sigma_rad = sigma_deg * DEG
+        heading_rad, level_rad = solution.heading_sigma_deg * DEG, solution.level_sigma_deg * DEG
+        attitude.mount_sigma_rad = max(heading_rad, level_rad)
         C_b_n = dcm_from_quat(aid[:4]) @ attitude.M_ref         # the master's attitude now, through the mounting
         position = np.r_[np.radians(aid[7:9]), aid[9]]
-        self.fine.start(C_b_n, C_b_b0, aid[4:7], position, sigma_deg * DEG, sigma_deg * DEG,
+        self.fine.start(C_b_n, C_b_b0, aid[4:7], position, level_rad, heading_rad,
                         HANDOVER_SIGMA_FACTOR * ad.master_vel_std_mps, velocity_from_attitude=False)
 
     def mounting(self) -> tuple[np.ndarray, float]:

@@ -95,10 +95,14 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _aided_table(name: str, seeds: range, out: Path) -> bool:
-    """The aided modes' own tables (seed003: odometer, seed004: GNSS) and plots; False for other names."""
+    """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS) and plots; False for
+    other names."""
     if name == "seed003":
         from sinsalign.tools.evaluate_aided import plot_seed003 as plot
         from sinsalign.tools.evaluate_aided import seed003_table as table
+    elif name == "seed002":
+        from sinsalign.tools.evaluate_transfer import plot_seed002 as plot
+        from sinsalign.tools.evaluate_transfer import seed002_table as table
     elif name == "seed004":
         from sinsalign.tools.evaluate_gnss import plot_seed004 as plot
         from sinsalign.tools.evaluate_gnss import seed004_table as table
@@ -364,6 +368,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "save OUT_DIR/SCENARIO_heading.png and OUT_DIR/SCENARIO.md.")
     p.add_argument("scenario", help="a scenario name (sinsalign sim --list), or seed003 for the in-motion table over "
                    "20/60/80 m/s (traditional V^b vs multistage at 120 s, then the Kalman stage to 600 s), or "
+                   "seed002 for the transfer-alignment table (dual model vs phase 1 alone, master faults), or "
                    "seed004 for the in-flight GNSS table (VIF vs PIF, lever arm compensated or ignored, and VIF "
                    "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty)")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")

@@ -22,7 +22,14 @@ from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 
-from .sim.aiding import gnss_epochs, odometer_epochs, with_gnss_faults, with_odometer_faults
+from .sim.aiding import (
+    gnss_epochs,
+    master_epochs,
+    odometer_epochs,
+    with_gnss_faults,
+    with_master_faults,
+    with_odometer_faults,
+)
 from .sim.imu import simulate
 from .sim.scenarios import Scenario, get_scenario
 
@@ -45,6 +52,8 @@ class RunResult:
     limit_deg: np.ndarray
     disturbances: int = 0
     counters: dict[str, int] | None = None
+    mount_error_deg: np.ndarray | None = None
+    """Transfer alignment: the final mounting estimate's error (3,) deg, in the master's axes."""
 
 
 def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
@@ -62,7 +71,8 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     ``initial_error_deg`` (φ_E, φ_N, φ_U) starts the compass loops alone from the truth at t = 0 turned by that
     misalignment, without the coarse stage (seed 001's compass-only runs). A scenario with an odometer or GNSS
     runs the aided pipeline, its readings going through the same aiding track as a log's; ``aid_faults`` are
-    keyword arguments of :func:`with_odometer_faults` or :func:`with_gnss_faults`, whichever aid it has.
+    keyword arguments of :func:`with_odometer_faults`, :func:`with_gnss_faults` or :func:`with_master_faults`,
+    whichever aid it has.
     ``gnss_lever_stated``: the GNSS log states the antenna's lever arm (it overrides ``aiding.gnss_lever_m``);
     False leaves the configuration's (zero by default: the lever arm ignored).
     """
@@ -80,6 +90,11 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"gnss": None},
                                   live)
         feed = AidingFeed(AidingTrack(6, config.aiding.gnss_latency_s, config.aiding.max_gap_s), iter([epochs]))
+    elif scenario.master is not None:
+        epochs = with_master_faults(master_epochs(scenario, seed), **(aid_faults or {}), seed=seed)
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(),
+                                  {"master": None}, live)
+        feed = AidingFeed(AidingTrack(10, config.aiding.master_latency_s, config.aiding.max_gap_s), iter([epochs]))
     elif scenario.odometer is None:
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
                                      initial_q_b_n=initial)
@@ -98,9 +113,12 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     t = np.array([r.t for r in records])
     C_est = dcm_from_quat(np.array([r.q for r in records]))
     phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
+    mount_error = None
+    if scenario.master is not None:
+        mount_error = misalignment(pipeline.mounting()[0], scenario.motion.mounting) / DEG
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
                      np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
-                     run_limit_deg(scenario, t), pipeline.disturbances, counters)
+                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error)
 
 
 def _run_task(args: tuple[str, int, dict, float | None, dict]) -> RunResult:

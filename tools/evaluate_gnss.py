@@ -124,9 +124,18 @@ def seed004_table(seeds: Sequence[int], progress: bool = True,
 
 
 def plot_seed004(runs_by_variant: dict[str, list[RunResult]], path: str | Path) -> Path:
+    """:func:`plot_heading_runs` of the seed-004 variants, the faults run with its outage shaded and its
+    glitches marked."""
+    return plot_heading_runs(runs_by_variant, path, HONEST_FROM_S,
+                             {FAULTS_LABEL: (OUTAGE_S, tuple(g[0] for g in GLITCHES))}, "GNSS outage")
+
+
+def plot_heading_runs(runs_by_variant: dict[str, list[RunResult]], path: str | Path, from_s: float,
+                      marks: dict[str, tuple[tuple[float, float], tuple[float, ...]]] | None = None,
+                      span_label: str = "outage") -> Path:
     """PNG: heading error of every run against time with the mean reported ±3σ, one row per variant: the error
-    from :data:`HONEST_FROM_S` on (linear) and |error| over the whole flight (log scale); the faults run
-    with its outage shaded and its glitches marked."""
+    from ``from_s`` on (linear) and |error| over the whole run (log scale); ``marks`` per variant: a span
+    (start, end) s to shade and times (s) to mark (faults)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -137,7 +146,7 @@ def plot_seed004(runs_by_variant: dict[str, list[RunResult]], path: str | Path) 
         t = runs[0].t
         err = np.array([r.phi_deg[:, 2] for r in runs])
         three_sigma = 3 * np.mean([r.heading_sigma_deg for r in runs], axis=0)
-        late = t >= HONEST_FROM_S
+        late = t >= from_s
         for e in err:
             lin.plot(t[late], e[late], lw=0.6, alpha=0.6)
             log.semilogy(t, np.abs(e), lw=0.6, alpha=0.6)
@@ -149,13 +158,14 @@ def plot_seed004(runs_by_variant: dict[str, list[RunResult]], path: str | Path) 
             lin.set_ylim(-1.3 * span, 1.3 * span)
         log.set_ylim(1e-4, 10.0)
         for ax in (lin, log):
-            if label == FAULTS_LABEL:
-                ax.axvspan(*OUTAGE_S, color="grey", alpha=0.25, label="GNSS outage")
-                for k, (start, *_) in enumerate(GLITCHES):
-                    ax.axvline(start, color="tab:red", lw=0.8, label="glitch" if k == 0 else None)
+            if label in (marks or {}):
+                span, times = marks[label]
+                ax.axvspan(*span, color="grey", alpha=0.25, label=span_label)
+                for k, start in enumerate(times):
+                    ax.axvline(start, color="tab:red", lw=0.8, label="fault" if k == 0 else None)
             ax.grid(alpha=0.3, which="both")
             ax.set_ylabel("heading error (deg)")
-        lin.set_title(f"{label}: heading error from {HONEST_FROM_S:g} s ({len(runs)} seeds)", fontsize=9)
+        lin.set_title(f"{label}: heading error from {from_s:g} s ({len(runs)} seeds)", fontsize=9)
         log.set_title(f"{label}: |heading error|", fontsize=9)
         lin.legend(loc="upper right", fontsize=7)
         log.legend(loc="upper right", fontsize=7)

@@ -40,18 +40,22 @@ def parse_aids(specs: list[str] | None) -> dict[str, str]:
 def open_aids(aids: dict[str, str], config: Config
               ) -> tuple[Config, dict[str, float | None], dict[str, AidingFeed]]:
     """Each aiding log opened as a feed (latency, gaps from the configuration) and its noise σ key, if any;
-    the configuration with what the logs state of themselves (a GNSS log's antenna lever arm and noise)."""
+    the configuration with what the logs state of themselves (a GNSS log's antenna lever arm and noise, a
+    master log's noise)."""
     noise, feeds = {}, {}
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
         noise[kind] = log.std("vel_std_mps")
         feeds[kind] = AidingFeed(AidingTrack(len(log.kind.columns) - 1, getattr(config.aiding, f"{kind}_latency_s"),
                                              config.aiding.max_gap_s), log.blocks())
+        stated = {}
         if kind == "gnss":
             stated = {"gnss_vel_std_mps": log.std("vel_std_mps"), "gnss_pos_std_m": log.std("pos_std_m")}
             if any(key in log.header.values for key in LEVER_KEYS):
                 stated["gnss_lever_m"] = tuple(float(v) for v in log.lever_arm_m)
-            config = replace(config, aiding=replace(config.aiding, **{k: v for k, v in stated.items() if v}))
+        elif kind == "master":
+            stated = {"master_att_std_deg": log.std("att_std_deg"), "master_vel_std_mps": log.std("vel_std_mps")}
+        config = replace(config, aiding=replace(config.aiding, **{k: v for k, v in stated.items() if v}))
     return config, noise, feeds
 
 

@@ -62,6 +62,26 @@ def odometer_epochs(scenario: Scenario, seed: int) -> np.ndarray:
     return np.column_stack((t, v))
 
 
+def without_span(epochs: np.ndarray, span_s: tuple[float, float] | None) -> np.ndarray:
+    """The epochs (N, 1 + k) without those whose time lies in [start, end) of ``span_s`` (a dropout, an outage)."""
+    if span_s is None:
+        return epochs
+    return epochs[(epochs[:, 0] < span_s[0]) | (epochs[:, 0] >= span_s[1])]
+
+
+def with_master_faults(epochs: np.ndarray, dropout_s: tuple[float, float] | None = None, repeated: int = 0,
+                       late_s: float = 0.0, seed: int = 0) -> np.ndarray:
+    """Master-INS epochs (N, 11) with faults: none inside ``dropout_s``, ``repeated`` epochs sent twice, and every
+    time stamp ``late_s`` late (what ``aiding.master_latency_s`` takes back)."""
+    out = without_span(epochs, dropout_s)
+    if repeated:
+        twice = np.sort(np.random.default_rng([seed, 7]).choice(len(out), repeated, replace=False))
+        out = np.insert(out, twice + 1, out[twice], axis=0)
+    out = out.copy()
+    out[:, 0] += late_s
+    return out
+
+
 def with_odometer_faults(epochs: np.ndarray, dropout_s: tuple[float, float] | None = None,
                          slip: tuple[float, float, float] | None = None, swapped: int = 0,
                          seed: int = 0) -> np.ndarray:
@@ -72,8 +92,7 @@ def with_odometer_faults(epochs: np.ndarray, dropout_s: tuple[float, float] | No
     if slip is not None:
         start, length, extra = slip
         out[(out[:, 0] >= start) & (out[:, 0] < start + length), 2] += extra
-    if dropout_s is not None:
-        out = out[(out[:, 0] < dropout_s[0]) | (out[:, 0] >= dropout_s[1])]
+    out = without_span(out, dropout_s)
     if swapped:
         for k in np.random.default_rng([seed, 4]).choice(len(out) - 1, swapped, replace=False):
             out[[k, k + 1]] = out[[k + 1, k]]
@@ -123,9 +142,7 @@ def with_gnss_faults(epochs: np.ndarray, outage_s: tuple[float, float] | None = 
         R_M, _ = radii(out[sel, 1] * DEG)
         out[sel, 1] += dpos / (R_M + out[sel, 3]) / DEG
         out[sel, 4] += dvel
-    if outage_s is not None:
-        out = out[(out[:, 0] < outage_s[0]) | (out[:, 0] >= outage_s[1])]
-    return out
+    return without_span(out, outage_s)
 
 
 def write_gnss_log(path: str | Path, epochs: np.ndarray, lever_b: np.ndarray | None = None,
