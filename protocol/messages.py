@@ -159,11 +159,7 @@ def decode_aiding(kind: str, data: bytes) -> AidingSample:
 
 
 def attitude_message(unit: str, record: ResultRecord) -> dict[str, Any]:
-    d = record.as_dict()
-    d["q"] = list(record.q)
-    if not math.isfinite(d["trace_P"]):
-        d["trace_P"] = None
-    return {"v": VERSION, "unit": unit, **d}
+    return {"v": VERSION, "unit": unit, **record.wire_dict()}
 
 
 def decode_attitude(data: bytes) -> dict[str, Any]:

@@ -2,7 +2,8 @@
 
 Fields: t (s), phase, q = [w, x, y, z] of C_b^n(t), pitch_deg, roll_deg, heading_deg (0-360,
 clockwise from true North), heading_sigma_deg, level_sigma_deg, converged; plus diagnostics
-(rho, trace_P, n_obs) that the pin allows.
+(rho, trace_P, n_obs) that the pin allows; transfer alignment adds mount_q = [w, x, y, z] of the
+slave-to-master mounting C_bs^bm and its 1-sigma mount_sigma_deg (largest axis).
 """
 from __future__ import annotations
 
@@ -30,16 +31,26 @@ class ResultRecord:
     rho: float
     trace_P: float
     n_obs: int
+    mount_q: tuple[float, float, float, float] | None = None
+    mount_sigma_deg: float | None = None
 
     def as_dict(self) -> dict[str, Any]:
-        return {name: getattr(self, name) for name in self.__slots__}
+        """The fields, without the mounting's where there is none (every mode but transfer alignment)."""
+        return {name: getattr(self, name) for name in self.__slots__
+                if not (name.startswith("mount_") and getattr(self, name) is None)}
 
-    def to_json(self) -> str:
+    def wire_dict(self) -> dict[str, Any]:
+        """The fields as JSON and msgpack carry them: lists for quaternions, None for a non-finite trace_P."""
         d = self.as_dict()
         d["q"] = list(self.q)
+        if self.mount_q is not None:
+            d["mount_q"] = list(self.mount_q)
         if not math.isfinite(d["trace_P"]):
             d["trace_P"] = None  # no observation yet; JSON has no infinity
-        return json.dumps(d, separators=(",", ":"))
+        return d
+
+    def to_json(self) -> str:
+        return json.dumps(self.wire_dict(), separators=(",", ":"))
 
 
 def validate_result(row: Any) -> list[str]:

@@ -11,8 +11,11 @@ The slave's attitude is the output; :meth:`TransferPipeline.mounting` gives M wi
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
+from ..protocol.results import ResultRecord
 from .align.coarse import InertialCoarseAlignment
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.kalman import ErrorStateFilter, GnssVelocity, MasterAttitude
@@ -130,16 +133,26 @@ class TransferPipeline(GyroRateAidPipeline):
         self.fine.start(C_b_n, C_b_b0, aid[4:7], position, level_rad, heading_rad,
                         HANDOVER_SIGMA_FACTOR * ad.master_vel_std_mps, velocity_from_attitude=False)
 
-    def mounting(self) -> tuple[np.ndarray, float]:
-        """(C_bs^bm (3, 3), its 1-sigma in degrees, the largest axis): phase 2's once it runs, else phase 1's."""
+    def mounting(self, coarse: MasterCoarseAlignment | None = None) -> tuple[np.ndarray, float]:
+        """(C_bs^bm (3, 3), its 1-sigma in degrees, the largest axis): phase 2's once it runs, else phase 1's
+        (of ``coarse``, the pipeline's own by default, or a scratch copy run ahead)."""
         if self.fine is not None and self.fine.active:
             attitude: MasterAttitude = self.fine.measurements["master_att"]
             mu = self.fine.extra("master_att")
             sigma = float(np.sqrt(np.max(np.diag(self.fine.P)[-3:]))) / DEG
             return attitude.mounting(mu), sigma
-        covariance = self.coarse.solver.covariance()
-        sigma = SIGMA_UNKNOWN_DEG if covariance is None else float(np.sqrt(np.max(np.diag(covariance)))) / DEG
-        return self.coarse.mounting, PHASE1_SIGMA_FACTOR * sigma
+        coarse = coarse or self.coarse
+        covariance = coarse.solver.covariance()
+        sigma = SIGMA_UNKNOWN_DEG if covariance is None else min(
+            PHASE1_SIGMA_FACTOR * float(np.sqrt(np.max(np.diag(covariance)))) / DEG, SIGMA_UNKNOWN_DEG)
+        return coarse.mounting, sigma
+
+    def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+                      coarse: InertialCoarseAlignment) -> ResultRecord:
+        record = super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)
+        M, sigma = self.mounting(coarse)
+        q = quat_from_dcm(M)
+        return replace(record, mount_q=tuple(float(c) for c in q / np.linalg.norm(q)), mount_sigma_deg=sigma)
 
     def aiding_counters(self) -> dict[str, int]:
         """Phase-1 epochs without the master, and phase 2's accepted and gated-out velocity and attitude epochs."""

@@ -71,7 +71,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
     if args.duration:
         scenario = replace(scenario, duration_s=args.duration)
     files = write_simulation(scenario, args.seed, args.out_dir)
-    aids = "".join(f" and {path}" for path in (files.odo_csv, files.gnss_csv) if path)
+    aids = "".join(f" and {path}" for path in (files.odo_csv, files.gnss_csv, files.master_csv) if path)
     print(f"wrote {files.imu_csv}, {files.truth_csv}{aids} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
     return 0
 

@@ -13,7 +13,14 @@ import numpy as np
 from sinsalign.protocol.imu_log import IMU_COLUMNS, TRUTH_COLUMNS, LogHeader, write_header, write_rows
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
 
-from .aiding import gnss_epochs, odometer_epochs, write_body_velocity_log, write_gnss_log
+from .aiding import (
+    gnss_epochs,
+    master_epochs,
+    odometer_epochs,
+    write_body_velocity_log,
+    write_gnss_log,
+    write_master_log,
+)
 from .imu import simulate
 from .scenarios import Scenario
 
@@ -24,6 +31,7 @@ class SimulatedFiles:
     truth_csv: Path
     odo_csv: Path | None = None
     gnss_csv: Path | None = None
+    master_csv: Path | None = None
 
 
 def _vector(values: tuple[float, ...] | np.ndarray, scale: float) -> str:
@@ -59,7 +67,8 @@ def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: s
     out.mkdir(parents=True, exist_ok=True)
     files = SimulatedFiles(out / f"{stem}.csv", out / f"{stem}_truth.csv",
                            None if scenario.odometer is None else out / f"{stem}_odo.csv",
-                           None if scenario.gnss is None else out / f"{stem}_gnss.csv")
+                           None if scenario.gnss is None else out / f"{stem}_gnss.csv",
+                           None if scenario.master is None else out / f"{stem}_master.csv")
     if files.odo_csv is not None:
         epochs = odometer_epochs(scenario, seed)
         write_body_velocity_log(files.odo_csv, epochs[:, 0], epochs[:, 1:], scenario.odometer.noise_mps or None)
@@ -67,6 +76,10 @@ def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: s
         g = scenario.gnss
         write_gnss_log(files.gnss_csv, gnss_epochs(scenario, seed), np.array(g.lever_b), g.vel_noise_mps or None,
                        g.pos_noise_m or None)
+    if files.master_csv is not None:
+        m = scenario.master
+        write_master_log(files.master_csv, master_epochs(scenario, seed), m.att_noise_deg or None,
+                         m.vel_noise_mps or None)
     with open(files.imu_csv, "w", encoding="utf-8") as imu, open(files.truth_csv, "w", encoding="utf-8") as truth:
         write_header(imu, log_keys(scenario, seed), IMU_COLUMNS)
         write_header(truth, {"scenario": scenario.name, "seed": seed}, TRUTH_COLUMNS)
