@@ -8,7 +8,8 @@ types and raise :class:`MessageError` with a reason; they never execute or evalu
   ``odo`` v_b [3] (m/s, body axes); ``gnss`` lat_deg, lon_deg, h_m, v_enu [3]; ``master`` q [4]
   (the master's C_b^n), v_enu [3], lat_deg, lon_deg, h_m.
 - attitude out (``…/attitude``): v, unit and the pinned result fields (t, phase, q, pitch_deg,
-  roll_deg, heading_deg, heading_sigma_deg, level_sigma_deg, converged, rho, trace_P, n_obs).
+  roll_deg, heading_deg, heading_sigma_deg, level_sigma_deg, converged, rho, trace_P, n_obs); in
+  transfer alignment also mount_q [4] (C_bs^bm, scalar first) and mount_sigma_deg.
 - status out (``…/status``, 1 Hz): v, unit, uptime_s, health, phase, t_last, last_error, counters {name: int}.
 """
 from __future__ import annotations
@@ -168,6 +169,13 @@ def decode_attitude(data: bytes) -> dict[str, Any]:
         _number(m, key)
     if not isinstance(m.get("q"), list) or len(m["q"]) != 4 or not isinstance(m.get("phase"), str):
         raise MessageError("attitude: q must be 4 numbers and phase a string")
+    if "mount_q" in m or "mount_sigma_deg" in m:   # transfer alignment's mounting: both, or neither
+        mount_q = m.get("mount_q")
+        if not isinstance(mount_q, list) or len(mount_q) != 4:
+            raise MessageError("attitude: mount_q must be 4 numbers")
+        for c in mount_q:
+            _number({"mount_q": c}, "mount_q")
+        _number(m, "mount_sigma_deg")
     return m
 
 

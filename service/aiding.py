@@ -90,6 +90,14 @@ class AidingTrack:
             ok = (t >= t0 - TIME_TOLERANCE_S) & (t <= t1 + TIME_TOLERANCE_S) & (t1 - t0 <= self.max_gap_s)
             f = ((t - t0) / (t1 - t0))[ok, None]
             out[ok] = held[k[ok] - 1, 1:] + f * (held[k[ok], 1:] - held[k[ok] - 1, 1:])
+        if self._n:
+            # a time at a held epoch takes that epoch's values, whatever its neighbours: the newest epoch (live,
+            # before the next arrives) and the first after a gap give the same as in a replay
+            k = np.clip(np.searchsorted(held[:, 0], t), 0, self._n - 1)
+            below = np.maximum(k - 1, 0)
+            nearest = np.where(np.abs(held[below, 0] - t) < np.abs(held[k, 0] - t), below, k)
+            at = np.abs(held[nearest, 0] - t) <= TIME_TOLERANCE_S
+            out[at] = held[nearest[at], 1:]
         self.counters.unaided_queries += int(np.isnan(out[:, 0]).sum())
         return out
 

@@ -4,7 +4,7 @@ One loop thread does everything in order, driven by the IMU frames' own timestam
 arrived (serial port and/or the Zenoh IMU topic), decode, check every sample (time must move
 forward, values finite), feed the pipeline, publish each attitude record as it comes out, and
 publish the status at ``daemon.status_period_s`` of wall time. In an aided mode
-(``aiding.inputs``: ``odo`` or ``gnss``) the epochs of that kind (``…/aid/<kind>`` on Zenoh, serial
+(``aiding.inputs``: ``odo``, ``gnss`` or ``master``) the epochs of that kind (``…/aid/<kind>`` on Zenoh, serial
 aiding frames) go to its track, and each IMU sample waits for its aiding (at most
 ``aiding.max_wait_s`` of data time) before the pipeline takes both. Every drop is counted in the
 status; nothing received over the wire is executed or changes the configuration. The Zenoh side

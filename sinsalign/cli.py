@@ -109,6 +109,9 @@ def _aided_table(name: str, seeds: range, out: Path) -> bool:
     else:
         return False
     text, runs = table(seeds)
+    if name == "seed002":
+        from sinsalign.tools.evaluate_transfer import phase1_comparison
+        text += "\n\n" + phase1_comparison(seeds)
     (out / f"{name}.md").write_text(text + "\n")
     print(text)
     print(f"\nplot: {plot(runs, out / f'{name}_heading.png')}\ntable: {out / f'{name}.md'}")
@@ -368,7 +371,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "save OUT_DIR/SCENARIO_heading.png and OUT_DIR/SCENARIO.md.")
     p.add_argument("scenario", help="a scenario name (sinsalign sim --list), or seed003 for the in-motion table over "
                    "20/60/80 m/s (traditional V^b vs multistage at 120 s, then the Kalman stage to 600 s), or "
-                   "seed002 for the transfer-alignment table (dual model vs phase 1 alone, master faults), or "
+                   "seed002 for the transfer-alignment table (dual model vs phase 1 alone, master faults; then phase 1 "
+                   "against the seed's additive-quaternion EKF), or "
                    "seed004 for the in-flight GNSS table (VIF vs PIF, lever arm compensated or ignored, and VIF "
                    "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty)")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")

@@ -7,6 +7,7 @@ import json
 import math
 import struct
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
+from sinsalign.protocol.results import ResultRecord
 from sinsalign.protocol.sequence import SequenceTracker
 from sinsalign.protocol.serial_frame import (
     AIDING_KIND_CODES,
@@ -315,6 +317,21 @@ def test_aiding_messages_of_each_kind_round_trip_and_are_checked():
         assert messages.aiding_row(messages.aiding_sample(kind, 0, row)) == row
     with pytest.raises(messages.MessageError, match="expected t and 6 values, got 6"):
         messages.aiding_sample("gnss", 0, [1.0, 30.0, 114.0, 500.0, 1.0, 50.0])
+
+
+def test_attitude_messages_carry_the_mounting_in_transfer_alignment_only():
+    record = ResultRecord(1.0, "fine", (1.0, 0.0, 0.0, 0.0), 0.0, 0.0, 0.0, 0.1, 0.1, False, 1.0, 0.5, 10)
+    assert "mount_q" not in messages.decode_attitude(messages.pack(messages.attitude_message("u", record)))
+    mounted = replace(record, mount_q=(0.96, 0.2, 0.14, -0.14), mount_sigma_deg=0.01)
+    m = messages.decode_attitude(messages.pack(messages.attitude_message("u", mounted)))
+    assert (m["mount_q"], m["mount_sigma_deg"]) == ([0.96, 0.2, 0.14, -0.14], 0.01)
+    wire = messages.attitude_message("u", mounted)
+    for bad, reason in (({"mount_q": [1.0, 0.0, 0.0]}, "mount_q"), ({"mount_q": [1.0, 0.0, 0.0, "0"]}, "mount_q"),
+                        ({"mount_sigma_deg": None}, "mount_sigma_deg"), ({"mount_sigma_deg": math.inf}, "not finite")):
+        with pytest.raises(messages.MessageError, match=reason):
+            messages.decode_attitude(messages.pack({**wire, **bad}))
+    with pytest.raises(messages.MessageError, match="mount_q"):   # both, or neither
+        messages.decode_attitude(messages.pack({**messages.attitude_message("u", record), "mount_sigma_deg": 0.01}))
 
 
 @settings(max_examples=300, deadline=None)
