@@ -54,15 +54,15 @@ class VelocityAidedPipeline(KalmanStagePipeline):
         odometer = BodyVelocity(self.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
         return ErrorStateFilter(self.grade, [odometer], ad.gate_chi2)
 
+    def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        return [("odo", aid)]
+
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
                     dt_s: float, aid: np.ndarray | None) -> None:
         C_b_b0 = dcm_from_quat(q_b_b0)
-        aided = aid is not None and bool(np.isfinite(aid).all())
-        if self.fine is not None and self.fine.active:
-            self.fine.predict(dalpha, dt_s, C_b_b0)
-            if aided:
-                self.fine.update("odo", aid)
+        if self._kalman_step(dalpha, dt_s, C_b_b0, aid):
             return
+        aided = aid is not None and bool(np.isfinite(aid).all())
         source: VelocityAidedSource = self.coarse.source
         if aided and source.C_b0_n0 is not None:
             source.advance(elapsed_s, C_b_b0, aid)   # C_n^{n0} with transport rate between re-runs, and after

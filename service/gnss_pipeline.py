@@ -80,20 +80,19 @@ class GnssAidedPipeline(GyroRateAidPipeline):
         return ErrorStateFilter(self.grade, [GnssVelocity(ad.gnss_vel_std_mps, lever),
                                              GnssPosition(ad.gnss_pos_std_m, lever)], ad.gate_chi2)
 
+    def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """The fix's velocity with the gyro rate (lever arm), and its position in rad / m."""
+        return [("gnss_vel", aid[3:9]), ("gnss_pos", np.r_[aid[:2] * DEG, aid[2]])]
+
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
                     dt_s: float, aid: np.ndarray | None) -> None:
-        if self.fine is None:
-            return
+        """The Kalman stage's step once it runs; before it, the hand-over from the coarse stage. ``aid``: the fix at
+        the step's end, then the gyro rate (3, rad/s)."""
         C_b_b0 = dcm_from_quat(q_b_b0)
-        aided = aid is not None and bool(np.isfinite(aid).all())
-        if self.fine.active:
-            self.fine.predict(dalpha, dt_s, C_b_b0)
-            if aided:
-                self.fine.update("gnss_vel", aid[3:9])
-                self.fine.update("gnss_pos", np.r_[aid[:2] * DEG, aid[2]])
+        if self.fine is None or self._kalman_step(dalpha, dt_s, C_b_b0, aid):
             return
         ad = self.config.aiding
-        if not aided or elapsed_s + 1e-9 < ad.gnss_handover_s:
+        if not np.isfinite(aid).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:
             return
         solution = self.coarse.solution_at(t_end, q_b_b0)
         if solution.heading_sigma_deg > ad.handover_heading_sigma_deg:

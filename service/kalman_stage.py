@@ -21,6 +21,21 @@ class KalmanStagePipeline(AlignmentPipeline):
 
     fine: ErrorStateFilter | None
 
+    def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """(measurement name, value) of one control step's aiding values (finite)."""
+        raise NotImplementedError
+
+    def _kalman_step(self, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray, aid: np.ndarray | None) -> bool:
+        """Once the filter runs: predict over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body
+        attitude C_b^{b0}) and fold the step's measurements if its aiding is there. False before the filter runs."""
+        if self.fine is None or not self.fine.active:
+            return False
+        self.fine.predict(dalpha, dt_s, C_b_b0)
+        if aid is not None and np.isfinite(aid).all():
+            for name, value in self._measurements(aid):
+                self.fine.update(name, value)
+        return True
+
     def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0, coarse: InertialCoarseAlignment) -> ResultRecord:
         if self.fine is None or not self.fine.active:
             return super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)

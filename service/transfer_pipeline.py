@@ -98,23 +98,18 @@ class TransferPipeline(GyroRateAidPipeline):
         return ErrorStateFilter(self.grade, [GnssVelocity(ad.master_vel_std_mps, name="master_vel"),
                                              MasterAttitude(ad.master_att_std_deg * DEG)], ad.gate_chi2)
 
+    def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """The master's velocity with the slave's gyro rate, and its attitude quaternion."""
+        return [("master_vel", np.r_[aid[4:7], aid[10:13]]), ("master_att", aid[:4])]
+
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
                     dt_s: float, aid: np.ndarray | None) -> None:
         """Phase 2's prediction and matching per control step; before it, the switch from phase 1. ``aid``:
         the master's 10 values at the step's end, then the slave's gyro rate (3, rad/s)."""
-        if self.fine is None:
-            return
         C_b_b0 = dcm_from_quat(q_b_b0)
-        aided = aid is not None and bool(np.isfinite(aid).all())
-        if self.fine.active:
-            self.fine.predict(dalpha, dt_s, C_b_b0)
-            if aided:
-                self.fine.update("master_vel", np.r_[aid[4:7], aid[10:13]])
-                self.fine.update("master_att", aid[:4])
+        if self.fine is None or self._kalman_step(dalpha, dt_s, C_b_b0, aid) or not np.isfinite(aid).all():
             return
         ad = self.config.aiding
-        if not aided:
-            return
         noise = self.coarse.noise_sigma(elapsed_s)
         if noise is None:
             return

@@ -11,6 +11,7 @@ import json
 from dataclasses import replace
 
 import numpy as np
+from aided_runs import process_simulation
 from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
@@ -20,7 +21,6 @@ from sinsalign.service.config import config_from_mapping
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import gnss_epochs, with_gnss_faults
 from sinsalign.tools.sim.files import write_simulation
-from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
 
@@ -34,12 +34,7 @@ def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None,
     pipeline = build_pipeline(config_from_mapping(mapping), scenario.site, scenario.rate_hz,
                               scenario.grade.datasheet(), {"gnss": None})
     feed = AidingFeed(AidingTrack(6), iter([with_gnss_faults(gnss_epochs(scenario, seed), **(faults or {}))]))
-    records = []
-    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
-        step = piece or len(chunk.t)
-        for k in range(0, len(chunk.t), step):
-            s = slice(k, k + step)
-            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.values_at(chunk.t[s]))
+    records = process_simulation(pipeline, scenario, seed, feed, piece)
     if counters is not None:
         counters.update(pipeline.aiding_counters())
     return records

@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from aided_runs import process_simulation
 from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
@@ -19,7 +20,6 @@ from sinsalign.service.config import config_from_mapping
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import master_epochs, with_master_faults, write_master_log
 from sinsalign.tools.sim.files import write_simulation
-from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario, seed002_flight
 
 
@@ -31,12 +31,7 @@ def run_transfer(scenario, seed=1, overrides=None, faults=None, piece=None):
     pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"master": None})
     epochs = with_master_faults(master_epochs(scenario, seed), **(faults or {}), seed=seed)
     feed = AidingFeed(AidingTrack(10, config.aiding.master_latency_s, config.aiding.max_gap_s), iter([epochs]))
-    records = []
-    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
-        step = piece or len(chunk.t)
-        for k in range(0, len(chunk.t), step):
-            s = slice(k, k + step)
-            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.values_at(chunk.t[s]))
+    records = process_simulation(pipeline, scenario, seed, feed, piece)
     return records, pipeline
 
 

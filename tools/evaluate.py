@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from rich.progress import Progress
@@ -138,19 +139,26 @@ def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None
     ``duration_s`` cuts the scenario short."""
     options = {"initial_error_deg": initial_error_deg, "aid_faults": aid_faults, "gnss_lever_stated": gnss_lever_stated}
     tasks = [(scenario_name, s, overrides or {}, duration_s, options) for s in seeds]
+    return run_parallel(_run_task, tasks, f"{scenario_name} {label}".strip(), progress, workers)
+
+
+def run_parallel(function: Callable[[Any], RunResult], tasks: Sequence[Any], label: str, progress: bool = True,
+                 workers: int | None = None) -> list[RunResult]:
+    """``function`` over the tasks in parallel processes (a picklable module-level function), results in order,
+    with a progress bar."""
     workers = workers or min(len(tasks), os.cpu_count() or 1)
     results = []
     with Progress(disable=not progress, transient=True) as bar:
-        task = bar.add_task(f"{scenario_name} {label}".strip(), total=len(tasks))
+        task = bar.add_task(label, total=len(tasks))
         if workers <= 1:
             for t in tasks:
-                results.append(_run_task(t))
+                results.append(function(t))
                 bar.advance(task)
         else:
             # forkserver, not fork: a fork of a process that runs Zenoh's threads (the daemon tests, a
             # live session) can inherit a lock held mid-call and deadlock in the child
             with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver")) as pool:
-                for r in pool.map(_run_task, tasks):
+                for r in pool.map(function, tasks):
                     results.append(r)
                     bar.advance(task)
     return results

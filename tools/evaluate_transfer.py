@@ -12,20 +12,16 @@ mounting and on 60°/−45°/120°.
 """
 from __future__ import annotations
 
-import multiprocessing
-import os
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from rich.progress import Progress
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.transfer_ekf import EkfSettings, run_transfer_ekf
 from sinsalign.service.config import Config, config_from_mapping
 
-from .evaluate import RunResult, monte_carlo, run_limit_deg, run_once
+from .evaluate import RunResult, monte_carlo, run_limit_deg, run_once, run_parallel
 from .evaluate_aided import fine_honesty
 from .evaluate_gnss import plot_heading_runs, summed_counters
 from .sim.aiding import master_epochs
@@ -149,20 +145,7 @@ def comparison_runs(method: str, mount_deg: Sequence[float], seeds: Sequence[int
     """Every seed of one method on one mounting (in parallel processes), in seed order. The closed form on the
     seed's mounting is ``monte_carlo("seed002", seeds, PHASE1_ALONE)``."""
     tasks = [(method, tuple(float(v) for v in mount_deg), s) for s in seeds]
-    workers = workers or min(len(tasks), os.cpu_count() or 1)
-    results = []
-    with Progress(disable=not progress, transient=True) as bar:
-        task = bar.add_task(label or method, total=len(tasks))
-        if workers <= 1:
-            for t in tasks:
-                results.append(_comparison_task(t))
-                bar.advance(task)
-        else:
-            with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver")) as pool:
-                for r in pool.map(_comparison_task, tasks):
-                    results.append(r)
-                    bar.advance(task)
-    return results
+    return run_parallel(_comparison_task, tasks, label or method, progress, workers)
 
 
 def within_2sigma(runs: Sequence[RunResult], t_s: float) -> float:

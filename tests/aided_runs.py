@@ -1,0 +1,14 @@
+"""Shared by the aided-mode tests: a simulated seed through a pipeline with its aiding feed."""
+from sinsalign.tools.sim.imu import simulate
+
+
+def process_simulation(pipeline, scenario, seed, feed, piece=None):
+    """The records of ``pipeline`` over the simulated ``seed`` of ``scenario`` (as it runs that seed), the
+    aiding values from ``feed``; the samples go in ``piece`` at a time (None: a chunk at once)."""
+    records = []
+    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
+        step = piece or len(chunk.t)
+        for k in range(0, len(chunk.t), step):
+            s = slice(k, k + step)
+            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.values_at(chunk.t[s]))
+    return records
