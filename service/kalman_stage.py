@@ -20,6 +20,8 @@ class KalmanStagePipeline(AlignmentPipeline):
     """An :class:`AlignmentPipeline` whose fine stage is an :class:`ErrorStateFilter`."""
 
     fine: ErrorStateFilter | None
+    sigma_margin = 1.0
+    """The reported σ is the filter's times this (a mode whose errors reach the Gaussian tails sets it > 1)."""
 
     def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
         """(measurement name, value) of one control step's aiding values (finite)."""
@@ -42,9 +44,11 @@ class KalmanStagePipeline(AlignmentPipeline):
         threshold = self.config.alignment.converged_heading_sigma_deg
         sigma = self.fine.sigma
         C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
-        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
+        m = self.sigma_margin
+        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), m * sigma.heading_deg, m * sigma.level_deg,
                                     coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
-        return result_record(solution, t_epoch, "aligned" if sigma.heading_deg <= threshold else "fine", threshold)
+        aligned = solution.heading_sigma_deg <= threshold
+        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)
 
 
 class GyroRateAidPipeline(KalmanStagePipeline):

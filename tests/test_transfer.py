@@ -80,8 +80,10 @@ def test_sigma_is_honest_over_seeds():
         records, _ = run_transfer(scenario, seed=seed)
         t, phi = errors_deg(scenario.for_seed(seed), records)
         sigma = np.array([r.heading_sigma_deg for r in records])
+        level_sigma = np.array([r.level_sigma_deg for r in records])
         converged = np.array([r.converged for r in records])
         assert not (converged & (np.abs(phi[:, 2]) > 3.0 * sigma)).any()
+        assert not (converged & (np.abs(phi[:, :2]).max(axis=1) > 3.0 * level_sigma)).any()
         ratios.append(np.abs(phi[t >= 10.0, 2]) / sigma[t >= 10.0])
     ratios = np.concatenate(ratios)
     assert np.mean(ratios <= 2.0) >= 0.9 and np.median(ratios) > 0.3

@@ -51,6 +51,14 @@ def rms_at(runs: Sequence[RunResult], t_s: float) -> np.ndarray:
     return np.sqrt(np.mean([r.phi_deg[k] ** 2 for r in runs], axis=0))
 
 
+def converged_beyond_3sigma_any_axis(runs: Sequence[RunResult]) -> int:
+    """Epochs, over all runs and the whole run, flagged converged with the heading error beyond 3 heading σ or a
+    level error beyond 3 level σ."""
+    return sum(int((r.converged & ((np.abs(r.phi_deg[:, 2]) > 3.0 * r.heading_sigma_deg)
+                                   | (np.abs(r.phi_deg[:, :2]).max(axis=1) > 3.0 * r.level_sigma_deg))).sum())
+               for r in runs)
+
+
 def _axes(v: np.ndarray) -> str:
     return " / ".join(f"{x:.4f}" for x in v)
 
@@ -59,15 +67,16 @@ def seed002_table(seeds: Sequence[int], progress: bool = True) -> tuple[str, dic
     """The seed-002 table in Markdown and the runs of each variant."""
     lines = [f"seed 002 transfer alignment, {len(seeds)} seeds (RMS over seeds, deg, φ_E / φ_N / φ_U)", "",
              "| variant | slave @10 s | slave @60 s | mounting @60 s | in 2σ from 10 s (heading) | "
-             "converged > 3σ |", "|---|---|---|---|---|---|"]
+             "converged > 3σ (any axis, any time) |", "|---|---|---|---|---|---|"]
     all_runs: dict[str, list[RunResult]] = {}
     for label, overrides, faults in VARIANTS:
         runs = monte_carlo(SCENARIO, seeds, overrides, progress=progress, label=label, aid_faults=faults)
         all_runs[label] = runs
         honest = fine_honesty(runs, HONEST_FROM_S)
+        beyond = converged_beyond_3sigma_any_axis(runs)
         mounting = np.sqrt(np.mean([r.mount_error_deg**2 for r in runs], axis=0))
         lines.append(f"| {label} | {_axes(rms_at(runs, AT_S[0]))} | {_axes(rms_at(runs, AT_S[1]))} | "
-                     f"{_axes(mounting)} | {100 * honest.inside_2sigma:.1f} % | {honest.converged_beyond_3sigma} |")
+                     f"{_axes(mounting)} | {100 * honest.inside_2sigma:.1f} % | {beyond} |")
     counters = summed_counters(all_runs[FAULTS_LABEL])
     lines += ["", f"{FAULTS_LABEL}: no master epochs {DROPOUT_S[0]:g}–{DROPOUT_S[1]:g} s, "
               f"{MASTER_FAULTS['repeated']} epochs sent twice, time stamps {LATE_S:g} s late "

@@ -255,8 +255,14 @@ class ErrorStateFilter:
 
     @property
     def sigma(self) -> AttitudeSigma:
+        """1-sigma heading and level (the worse of the two level axes: flying straight, the roll axis is the
+        weak one, and their mean claimed up to √2 too much) in degrees."""
         P = self.P
-        return AttitudeSigma(float(np.sqrt(P[2, 2])) / DEG, float(np.sqrt(0.5 * (P[0, 0] + P[1, 1]))) / DEG)
+        return AttitudeSigma(float(np.sqrt(P[2, 2])) / DEG, float(np.sqrt(max(P[0, 0], P[1, 1]))) / DEG)
+
+    def extra_slice(self, name: str) -> slice:
+        """Where measurement ``name``'s extra states sit in the state vector."""
+        return self._extra[name]
 
     def extra(self, name: str) -> np.ndarray:
         """The current extra states of measurement ``name``."""
