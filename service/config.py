@@ -74,10 +74,11 @@ class AidingConfig:
     m; a GNSS log's ``# lever_*_m`` keys override it), the coarse stage's formula (``vif`` velocity
     integration, ``pif`` position integration: positions only), the fixes' noise per ENU axis (a log's
     ``vel_std_mps`` / ``pos_std_m`` override), and when the Kalman stage takes over (s of alignment).
-    Master INS (transfer alignment): latency, its attitude and velocity noise (a log's ``att_std_deg`` /
-    ``vel_std_mps`` override), and the switch from the large-angle phase to the Kalman stage: at
-    ``master_handover_s`` if set (the seed's fixed 10 s), else once phase 1's σ is at most
-    ``master_handover_sigma_deg``.
+    Master INS (transfer alignment): latency, the lever arm from the master's point to the slave IMU
+    (master body axes, m; a master log's ``# lever_*_m`` keys override), its attitude and velocity
+    noise (a log's ``att_std_deg`` / ``vel_std_mps`` override), and the switch from the large-angle
+    phase to the Kalman stage: at ``master_handover_s`` if set (the seed's fixed 10 s), else once
+    phase 1's σ is at most ``master_handover_sigma_deg``.
     Coarse: the multistage window (s, bounded store of window / obs interval rows), its levels, how
     often they are re-run, the solver of each level. ``max_gap_s``: epochs further apart are not
     interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
@@ -101,6 +102,7 @@ class AidingConfig:
     gnss_pos_std_m: float = 2.0
     gnss_handover_s: float = 30.0
     master_latency_s: float = 0.0
+    master_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
     master_att_std_deg: float = 0.001
     master_vel_std_mps: float = 0.005
     master_handover_s: float = 0.0
@@ -227,6 +229,9 @@ def _check(config: Config) -> Config:
         raise ConfigError(f"aiding.gnss_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.gnss_lever_m)}")
     if ad.gnss_formula not in GNSS_FORMULAS:
         raise ConfigError(f"aiding.gnss_formula: {ad.gnss_formula!r} is not one of {', '.join(GNSS_FORMULAS)}")
+    if len(ad.master_lever_m) != 3:
+        raise ConfigError(f"aiding.master_lever_m: expected 3 numbers (master body x, y, z in m), got "
+                          f"{list(ad.master_lever_m)}")
     if len(ad.odo_lever_m) != 3:
         raise ConfigError(f"aiding.odo_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.odo_lever_m)}")
     if config.disturbance.action not in DISTURBANCE_ACTIONS:

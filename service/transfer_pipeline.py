@@ -18,7 +18,7 @@ import numpy as np
 from ..protocol.results import ResultRecord
 from .align.coarse import InertialCoarseAlignment
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
-from .align.kalman import ACC_BIAS, PHI, ErrorStateFilter, GnssVelocity, MasterAttitude
+from .align.kalman import ACC_BIAS, PHI, ErrorStateFilter, GnssVelocity, MasterAttitude, antenna_lever_velocity
 from .align.sensor_model import SIGMA_UNKNOWN_DEG
 from .align.solvers import GroupedWahba
 from .align.transfer import MASTER_COLUMNS, MasterSource
@@ -41,6 +41,7 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
 
     def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
                 aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.source.mounting_estimate = self.mounting     # the lever arm in the slave's axes
         due, outer, pairs = super().observe(elapsed_s, q_b_b0, alpha, aid)
         return np.repeat(due, 2), outer, pairs            # two pairs per epoch
 
@@ -97,7 +98,7 @@ class TransferPipeline(GyroRateAidPipeline):
     def _make_coarse(self) -> InertialCoarseAlignment:
         a, ad = self.config.alignment, self.config.aiding
         source = MasterSource(self.site, ad.master_att_std_deg * DEG, ad.master_vel_std_mps, self.grade.gyro_bias_rad_s,
-                              self.grade.acc_bias_ms2)
+                              self.grade.acc_bias_ms2, np.array(ad.master_lever_m))
         return MasterCoarseAlignment(source, self.grade, GroupedWahba(2), self.sample_period_s, a.obs_interval_s,
                                      a.disturbance_velocity_mps)
 
@@ -131,11 +132,15 @@ class TransferPipeline(GyroRateAidPipeline):
             return
         attitude: MasterAttitude = self.fine.measurements["master_att"]
         attitude.M_ref = self.coarse.mounting
+        # the master's point from the slave, in the slave's axes: its velocity is what the master reports
+        velocity: GnssVelocity = self.fine.measurements["master_vel"]
+        velocity.lever_b = -attitude.M_ref.T @ np.array(ad.master_lever_m)
         heading_rad, level_rad = solution.heading_sigma_deg * DEG, solution.level_sigma_deg * DEG
         attitude.mount_sigma_rad = max(heading_rad, level_rad)
         C_b_n = dcm_from_quat(aid[:4]) @ attitude.M_ref         # the master's attitude now, through the mounting
         position = np.r_[np.radians(aid[7:9]), aid[9]]
-        self.fine.start(C_b_n, C_b_b0, aid[4:7], position, level_rad, heading_rad,
+        V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], velocity.lever_b)
+        self.fine.start(C_b_n, C_b_b0, V_n, position, level_rad, heading_rad,
                         HANDOVER_SIGMA_FACTOR * ad.master_vel_std_mps, velocity_from_attitude=False)
         self._correlate_handover(C_b_n, *noise)
 

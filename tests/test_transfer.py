@@ -118,3 +118,14 @@ def test_a_master_log_replays_with_the_noise_it_states(tmp_path):
     t = np.array([r["t"] for r in rows])
     phi = misalignment(dcm_from_quat(np.array([r["q"] for r in rows])), scenario.motion.attitude(t)) / DEG
     assert len(rows) == 12 and np.abs(phi[t >= 2.0]).max() < 1e-3
+
+
+def test_the_lever_arm_from_the_master_to_the_slave_is_compensated():
+    """The slave 2.3 m from the master's point (master axes 1, 2, −0.5 m): the master reports the velocity of
+    its own point, which differs by C_bm^n (ω × l) in the wing rocks (0.4 m/s)."""
+    scenario = replace(get_scenario("seed002"), motion=seed002_flight(lever_m=(1.0, 2.0, -0.5)))
+    compensated, _ = run_transfer(scenario, overrides={"aiding": {"master_lever_m": [1.0, 2.0, -0.5]}})
+    ignored, _ = run_transfer(scenario)
+    t, phi = errors_deg(scenario.for_seed(1), compensated)
+    _, phi_ignored = errors_deg(scenario.for_seed(1), ignored)
+    assert np.abs(phi[t >= 10.0]).max() < 0.05 < 0.3 < np.abs(phi_ignored[t >= 10.0]).max()

@@ -40,8 +40,8 @@ def parse_aids(specs: list[str] | None) -> dict[str, str]:
 def open_aids(aids: dict[str, str], config: Config
               ) -> tuple[Config, dict[str, float | None], dict[str, AidingFeed]]:
     """Each aiding log opened as a feed (latency, gaps from the configuration) and its noise σ key, if any;
-    the configuration with what the logs state of themselves (a GNSS log's antenna lever arm and noise, a
-    master log's noise)."""
+    the configuration with what the logs state of themselves (a GNSS or master log's lever arm and
+    noise)."""
     noise, feeds = {}, {}
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
@@ -51,10 +51,10 @@ def open_aids(aids: dict[str, str], config: Config
         stated = {}
         if kind == "gnss":
             stated = {"gnss_vel_std_mps": log.std("vel_std_mps"), "gnss_pos_std_m": log.std("pos_std_m")}
-            if any(key in log.header.values for key in LEVER_KEYS):
-                stated["gnss_lever_m"] = tuple(float(v) for v in log.lever_arm_m)
         elif kind == "master":
             stated = {"master_att_std_deg": log.std("att_std_deg"), "master_vel_std_mps": log.std("vel_std_mps")}
+        if kind in ("gnss", "master") and any(key in log.header.values for key in LEVER_KEYS):
+            stated[f"{kind}_lever_m"] = tuple(float(v) for v in log.lever_arm_m)
         config = replace(config, aiding=replace(config.aiding, **{k: v for k, v in stated.items() if v}))
     return config, noise, feeds
 

@@ -38,18 +38,23 @@ class MasterSource:
 
     site : start position. att_std_rad, vel_std_mps : the master's white noise per axis.
     gyro_bias_rad_s, acc_bias_ms2 : the slave's datasheet biases (how fast its pairs lose weight).
+    lever_m : from the master's point to the slave IMU, master body axes (m). The velocity pairs see the
+        master's point, at −Mᵀ l from the slave in its own axes: the VIF source's lever arm, with M the
+        latest estimate (:attr:`mounting_estimate`, set by the coarse stage before each batch).
     """
 
     aid_width = MASTER_COLUMNS
 
     def __init__(self, site: Site, att_std_rad: float, vel_std_mps: float, gyro_bias_rad_s: float,
-                 acc_bias_ms2: float) -> None:
+                 acc_bias_ms2: float, lever_m: np.ndarray | None = None) -> None:
         self.site = site
         self.att_std_rad = att_std_rad
         self.vel_std_mps = vel_std_mps
         self.gyro_bias_rad_s = gyro_bias_rad_s
         self.acc_bias_ms2 = acc_bias_ms2
         self.velocity = GnssVelocitySource(site, None, vel_std_mps)
+        self.lever_m = np.zeros(3) if lever_m is None else np.asarray(lever_m, dtype=float)
+        self.mounting_estimate = np.eye(3)
         self._P_first: np.ndarray | None = None
         self._S_first = np.eye(3)
 
@@ -62,14 +67,15 @@ class MasterSource:
     def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
                 aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(b (2M, 3), r (2M, 3)): at each of M epochs the velocity pair (m/s) then the attitude pair (rad);
-        b in the slave's body axes at t_f, r in the master's."""
+        b in the slave's body axes at t_f, r in the master's. ``aid`` (M, 13): the master's ten values, then the
+        slave's gyro rate ω_ib^bs (3, rad/s)."""
         if aid is None:
             raise ValueError("transfer alignment needs the master's output at every observation")
         if len(elapsed_s) == 0:
             return np.empty((0, 3)), np.empty((0, 3))
-        no_rates = np.zeros((len(elapsed_s), 3))   # the slave sits at the master's point: no lever arm
+        self.velocity.lever_b = -self.mounting_estimate.T @ self.lever_m
         b_v, r_v = self.velocity.vectors(elapsed_s, alpha_b0, q_b_b0,
-                                         np.column_stack((aid[:, 7:10], aid[:, 4:7], no_rates)))
+                                         np.column_stack((aid[:, 7:10], aid[:, 4:7], aid[:, 10:13])))
         lat, lon = np.radians(aid[:, 7]), np.radians(aid[:, 8])
         P = self.velocity._C_n_n0(elapsed_s, lat, lon) @ dcm_from_quat(aid[:, :4])
         S = dcm_from_quat(q_b_b0)

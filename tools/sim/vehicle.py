@@ -108,6 +108,8 @@ class MountedMotion:
 
     vehicle: VehicleMotion
     C_bs_bm: tuple[tuple[float, float, float], ...]
+    lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    """From the master's point to the slave IMU, master body axes (m)."""
 
     @property
     def start(self) -> Site:
@@ -133,4 +135,10 @@ class MountedMotion:
         """The slave's C_bs^n, ω_ib^bs (rad/s) and f^bs (m/s²) at times t: the master's turned by the mounting."""
         C_bm_n, omega_ib_bm, f_bm = self.vehicle.body_rate_and_force(site, t)
         M = self.mounting
+        lever = np.asarray(self.lever_m, dtype=float)
+        if lever.any():
+            h = 1e-4
+            omega_dot = (self.vehicle.body_rate_and_force(site, np.asarray(t) + h)[1]
+                         - self.vehicle.body_rate_and_force(site, np.asarray(t) - h)[1]) / (2.0 * h)
+            f_bm = f_bm + cross(omega_dot, lever) + cross(omega_ib_bm, cross(omega_ib_bm, lever))
         return C_bm_n @ M, omega_ib_bm @ M, f_bm @ M
