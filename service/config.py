@@ -78,7 +78,9 @@ class AidingConfig:
     (master body axes, m; a master log's ``# lever_*_m`` keys override), its attitude and velocity
     noise (a log's ``att_std_deg`` / ``vel_std_mps`` override), and the switch from the large-angle
     phase to the Kalman stage: at ``master_handover_s`` if set (the seed's fixed 10 s), else once
-    phase 1's σ is at most ``master_handover_sigma_deg``.
+    phase 1's σ is at most ``master_handover_sigma_deg``. A rough nominal
+    mounting ``master_mount_deg`` (heading, pitch, roll of C_bs^bm; empty: none) with its 1-sigma
+    ``master_mount_sigma_deg`` gives the slave an attitude until phase 1 has resolved the mounting.
     Coarse: the multistage window (s, bounded store of window / obs interval rows), its levels, how
     often they are re-run, the solver of each level. ``max_gap_s``: epochs further apart are not
     interpolated across. ``gate_chi2``: innovation gate of the Kalman stage.
@@ -103,6 +105,8 @@ class AidingConfig:
     gnss_handover_s: float = 30.0
     master_latency_s: float = 0.0
     master_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
+    master_mount_deg: tuple[float, ...] = ()
+    master_mount_sigma_deg: float = 5.0
     master_att_std_deg: float = 0.001
     master_vel_std_mps: float = 0.005
     master_handover_s: float = 0.0
@@ -229,6 +233,9 @@ def _check(config: Config) -> Config:
         raise ConfigError(f"aiding.gnss_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.gnss_lever_m)}")
     if ad.gnss_formula not in GNSS_FORMULAS:
         raise ConfigError(f"aiding.gnss_formula: {ad.gnss_formula!r} is not one of {', '.join(GNSS_FORMULAS)}")
+    if len(ad.master_mount_deg) not in (0, 3):
+        raise ConfigError(f"aiding.master_mount_deg: expected 3 numbers (heading, pitch, roll in deg) or none, got "
+                          f"{list(ad.master_mount_deg)}")
     if len(ad.master_lever_m) != 3:
         raise ConfigError(f"aiding.master_lever_m: expected 3 numbers (master body x, y, z in m), got "
                           f"{list(ad.master_lever_m)}")
@@ -275,6 +282,7 @@ def _check(config: Config) -> Config:
         ("aiding.master_att_std_deg", ad.master_att_std_deg > 0.0, "must be > 0"),
         ("aiding.master_vel_std_mps", ad.master_vel_std_mps > 0.0, "must be > 0"),
         ("aiding.master_handover_s", 0.0 <= ad.master_handover_s <= 3600.0, "must be in [0, 3600] (0: by σ)"),
+        ("aiding.master_mount_sigma_deg", 0.0 < ad.master_mount_sigma_deg <= 180.0, "must be in (0, 180]"),
         ("aiding.master_handover_sigma_deg", ad.master_handover_sigma_deg > 0.0, "must be > 0"),
         ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
         ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),

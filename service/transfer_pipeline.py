@@ -17,7 +17,7 @@ import numpy as np
 
 from ..protocol.results import ResultRecord
 from .align.coarse import InertialCoarseAlignment
-from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
+from .align.conventions import DEG, dcm_from_euler, dcm_from_quat, quat_from_dcm
 from .align.kalman import ACC_BIAS, PHI, ErrorStateFilter, GnssVelocity, MasterAttitude, antenna_lever_velocity
 from .align.sensor_model import SIGMA_UNKNOWN_DEG
 from .align.solvers import GroupedWahba
@@ -49,14 +49,30 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
         return self.solver.prepare(b, r, self.source.observation_variance(elapsed_s),
                                    self.source.pair_groups(len(elapsed_s)))
 
+    nominal: tuple[np.ndarray, float] | None = None
+    """A rough nominal mounting C_bs^bm (3, 3) and its 1-sigma (rad), if configured: the answer until the fit's."""
+
     @property
     def mounting(self) -> np.ndarray:
         """The estimate of C_bs^bm (3, 3)."""
         return dcm_from_quat(self.solver.quaternion())
 
     @property
+    def resolved(self) -> bool:
+        """Whether the fit has fixed every axis of the mounting (its heading σ within :data:`LINEAR_LIMIT_DEG`)."""
+        covariance = self.solver.covariance()
+        return covariance is not None and PHASE1_SIGMA_FACTOR * np.sqrt(np.max(np.diag(covariance))) <= (
+            LINEAR_LIMIT_DEG * DEG)
+
+    def best_mounting(self) -> tuple[np.ndarray, float | None]:
+        """(C_bs^bm, its 1-sigma in rad if it is the nominal one): the fit's once resolved, else the nominal."""
+        if self.nominal is not None and not self.resolved:
+            return self.nominal
+        return self.mounting, None
+
+    @property
     def q_b_n0(self) -> np.ndarray:
-        return quat_from_dcm(self.source.C_b0_n0(self.mounting))
+        return quat_from_dcm(self.source.C_b0_n0(self.best_mounting()[0]))
 
     def noise_sigma(self, elapsed_s: float) -> tuple[float, float] | None:
         """1-sigma (heading, level) in rad of the slave's attitude from the fit's noise alone: the mounting's
@@ -74,6 +90,10 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
     def sigma(self, elapsed_s: float) -> tuple[float, float]:
         """1-sigma (heading, level) in degrees: the noise part, and in level the accelerometer bias's tilt ∇/g
         (the velocity pairs cannot tell a bias from a tilt; the Kalman stage can, once the body rolls)."""
+        nominal_sigma = self.best_mounting()[1]
+        if nominal_sigma is not None:
+            drift = self.grade.gyro_bias_rad_s * max(elapsed_s, 0.0)
+            return (min(float(np.hypot(nominal_sigma, drift)) / DEG, SIGMA_UNKNOWN_DEG),) * 2
         noise = self.noise_sigma(elapsed_s)
         if noise is None:
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
@@ -99,8 +119,11 @@ class TransferPipeline(GyroRateAidPipeline):
         a, ad = self.config.alignment, self.config.aiding
         source = MasterSource(self.site, ad.master_att_std_deg * DEG, ad.master_vel_std_mps, self.grade.gyro_bias_rad_s,
                               self.grade.acc_bias_ms2, np.array(ad.master_lever_m))
-        return MasterCoarseAlignment(source, self.grade, GroupedWahba(2), self.sample_period_s, a.obs_interval_s,
-                                     a.disturbance_velocity_mps)
+        coarse = MasterCoarseAlignment(source, self.grade, GroupedWahba(2), self.sample_period_s, a.obs_interval_s,
+                                       a.disturbance_velocity_mps)
+        if ad.master_mount_deg:
+            coarse.nominal = (dcm_from_euler(*(np.array(ad.master_mount_deg) * DEG)), ad.master_mount_sigma_deg * DEG)
+        return coarse
 
     def _make_fine(self) -> ErrorStateFilter | None:
         if not self.config.fine.enabled:
@@ -180,6 +203,9 @@ class TransferPipeline(GyroRateAidPipeline):
             sigma = float(np.sqrt(np.max(np.diag(self.fine.P)[-3:]))) / DEG
             return attitude.mounting(mu), sigma
         coarse = coarse or self.coarse
+        nominal, nominal_sigma = coarse.best_mounting()
+        if nominal_sigma is not None:
+            return nominal, nominal_sigma / DEG
         covariance = coarse.solver.covariance()
         sigma = SIGMA_UNKNOWN_DEG if covariance is None else min(
             PHASE1_SIGMA_FACTOR * float(np.sqrt(np.max(np.diag(covariance)))) / DEG, SIGMA_UNKNOWN_DEG)

@@ -129,3 +129,18 @@ def test_the_lever_arm_from_the_master_to_the_slave_is_compensated():
     t, phi = errors_deg(scenario.for_seed(1), compensated)
     _, phi_ignored = errors_deg(scenario.for_seed(1), ignored)
     assert np.abs(phi[t >= 10.0]).max() < 0.05 < 0.3 < np.abs(phi_ignored[t >= 10.0]).max()
+
+
+def test_a_rough_nominal_mounting_gives_the_slave_an_attitude_until_phase_1_has_resolved_it():
+    scenario = replace(get_scenario("seed002"), duration_s=4.0)
+    config = {"output": {"period_s": 0.2}}
+    nominal, _ = run_transfer(scenario, overrides={**config, "aiding": {"master_mount_deg": [21.0, 19.0, 20.5],
+                                                                        "master_mount_sigma_deg": 2.0}})
+    bare, _ = run_transfer(scenario, overrides=config)
+    t, phi = errors_deg(scenario.for_seed(1), nominal)
+    _, phi_bare = errors_deg(scenario.for_seed(1), bare)
+    early = t <= 0.8                                            # before the first wing rock resolves the mounting
+    assert np.abs(phi[early]).max() < 3.0 < np.abs(phi_bare[early]).max()
+    assert all(r.heading_sigma_deg == pytest.approx(2.0, abs=0.01) for r, e in zip(nominal, early, strict=True) if e)
+    late = t >= 3.0                                             # then the fit's, as without it
+    assert np.abs(phi[late] - phi_bare[late]).max() < 1e-9
