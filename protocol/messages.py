@@ -29,12 +29,34 @@ NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_publish
                         "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
                         "gnss_vel_accepted", "gnss_pos_accepted", "master_epochs", "master_unaided_queries",
                         "master_vel_accepted", "master_att_accepted"})
-"""Status counters that count work, not faults; every other counter counts a drop or a fault."""
+"""Status counters that count work, not faults; every other counter counts a drop or a fault, but for SCREENED."""
+SCREENED = frozenset({"odo_rejected", "odo_outlier_pairs", "gnss_coarse_rejected", "gnss_vel_rejected",
+                      "gnss_pos_rejected", "master_vel_rejected", "master_att_rejected"})
+"""Inputs an estimator's gate or screen turned away. A gate at χ² 16.3 also turns away about 0.1 % of good
+inputs, so one rejection is not a fault: :func:`screening_alarm` says when their rate is."""
+SCREENING_ALARM_COUNT = 3
+SCREENING_ALARM_SHARE = 0.05
+"""A status period whose rejections of one kind reach both this count and this share of that kind's updates
+(a glitch, a bad lever arm or latency, a failing sensor) is degraded."""
 
 
 def faults(counters: dict[str, int]) -> dict[str, int]:
-    """The counters that count drops or faults and are not zero."""
-    return {k: v for k, v in counters.items() if v and k not in NOT_FAULTS}
+    """The counters that count drops or faults (not work, not screening) and are not zero."""
+    return {k: v for k, v in counters.items() if v and k not in NOT_FAULTS and k not in SCREENED}
+
+
+def screening_alarm(before: dict[str, int], now: dict[str, int]) -> list[str]:
+    """The screening counters whose rise from ``before`` to ``now`` is an alarm: at least
+    :data:`SCREENING_ALARM_COUNT` and :data:`SCREENING_ALARM_SHARE` of the kind's updates (its ``…_accepted``
+    counter's rise plus the rejections; a screen without one counts the rejections alone)."""
+    alarms = []
+    for key in SCREENED & now.keys():
+        rejected = now[key] - before.get(key, 0)
+        accepted_key = key.removesuffix("_rejected") + "_accepted"
+        accepted = now.get(accepted_key, 0) - before.get(accepted_key, 0)
+        if rejected >= SCREENING_ALARM_COUNT and rejected >= SCREENING_ALARM_SHARE * (accepted + rejected):
+            alarms.append(key)
+    return sorted(alarms)
 
 
 def fault_count(counters: dict[str, int]) -> int:

@@ -97,6 +97,7 @@ class Daemon:
         self._started = time.monotonic()
         self._last_input = None
         self._errors_at_status = 0
+        self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
         self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival
@@ -325,8 +326,10 @@ class Daemon:
         elif time.monotonic() - self._last_input > NO_INPUT_S:
             health = "no_input"
         else:
-            health = "degraded" if errors > self._errors_at_status else "ok"
+            screening = messages.screening_alarm(self._counters_at_status, counters)
+            health = "degraded" if errors > self._errors_at_status or screening else "ok"
         self._errors_at_status = errors
+        self._counters_at_status = counters
         last_error = self.last_error or (self.serial.last_error if self.serial is not None else None)
         phase = self.last_record.phase if self.last_record is not None else "coarse"
         return messages.status_message(self.keys.unit, time.monotonic() - self._started, health, phase, self.t_last,

@@ -351,9 +351,9 @@ def test_the_daemon_aligns_a_slave_imu_against_a_master_ins_arriving_late(tmp_pa
                                           "att_rejected")} <= counters.keys()
     assert counters["master_unaided_queries"] == 9        # the samples before the first epoch (0.1 s)
     assert counters["master_vel_accepted"] > 100 and counters["master_att_accepted"] > 100
-    faults = messages.faults(counters)
-    # seed 1: the χ² gate (16.3) turns away 2 of 136 master velocities, at 4.4 and 4.7 s (first wing rock)
-    assert faults.pop("master_vel_rejected", 0) <= 2 and faults == {}
+    # seed 1: the χ² gate (16.3) turns away 2 of 136 master velocities, at 4.4 and 4.7 s (first wing rock):
+    # screening, not faults, and below the alarm's rate
+    assert messages.faults(counters) == {} and counters["master_vel_rejected"] <= 2
     write_master_log(tmp_path / "master.csv", epochs, master.att_noise_deg, master.vel_noise_mps)
     assert_close_to_replay(records, tmp_path, config, {"master": str(tmp_path / "master.csv")})
     # the mounting C_bs^bm travels in every record of this mode (the subscriber's decode_attitude checked it)

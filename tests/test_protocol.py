@@ -356,3 +356,16 @@ def test_keys_of_a_unit_with_a_configurable_prefix():
         config_from_mapping({"zenoh": {"unit": "a/b"}})
     with pytest.raises(ConfigError, match=r"^zenoh\.listen: expected a list of strings"):
         config_from_mapping({"zenoh": {"listen": "tcp/127.0.0.1:7447"}})
+
+
+def test_screening_rejections_are_not_faults_but_a_burst_of_them_is_an_alarm():
+    """A χ² gate turns away ~0.1 % of good fixes: one rejection leaves the health ok; a glitch (ten in a
+    second) or a steady share above 5 % makes the status degraded."""
+    before = {"gnss_vel_accepted": 100, "gnss_vel_rejected": 1, "gnss_coarse_rejected": 0}
+    isolated = {"gnss_vel_accepted": 110, "gnss_vel_rejected": 2, "gnss_coarse_rejected": 1}
+    glitch = {"gnss_vel_accepted": 110, "gnss_vel_rejected": 12, "gnss_coarse_rejected": 1}
+    coarse_burst = {"gnss_vel_accepted": 110, "gnss_vel_rejected": 1, "gnss_coarse_rejected": 10}
+    assert messages.faults(isolated) == {} and messages.screening_alarm(before, isolated) == []
+    assert messages.screening_alarm(before, glitch) == ["gnss_vel_rejected"]
+    assert messages.screening_alarm(before, coarse_burst) == ["gnss_coarse_rejected"]
+    assert messages.faults({"odo_rejected": 3, "seq_gaps": 1}) == {"seq_gaps": 1}
