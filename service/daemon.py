@@ -96,7 +96,6 @@ class Daemon:
         self.t_last: float | None = None
         self._started = time.monotonic()
         self._last_input = None
-        self._errors_at_status = 0
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
         self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
@@ -326,9 +325,8 @@ class Daemon:
         elif time.monotonic() - self._last_input > NO_INPUT_S:
             health = "no_input"
         else:
-            screening = messages.screening_alarm(self._counters_at_status, counters)
-            health = "degraded" if errors > self._errors_at_status or screening else "ok"
-        self._errors_at_status = errors
+            rose = errors > messages.fault_count(self._counters_at_status)
+            health = "degraded" if rose or messages.screening_alarm(self._counters_at_status, counters) else "ok"
         self._counters_at_status = counters
         last_error = self.last_error or (self.serial.last_error if self.serial is not None else None)
         phase = self.last_record.phase if self.last_record is not None else "coarse"

@@ -57,10 +57,19 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
         """The estimate of C_bs^bm (3, 3)."""
         return dcm_from_quat(self.solver.quaternion())
 
+    _covariance: tuple[int, np.ndarray | None] = (-1, None)
+
+    def fit_covariance(self) -> np.ndarray | None:
+        """The grouped fit's covariance (3, 3) rad² of the mounting, in the master's axes (None before it has one):
+        computed once per number of pairs folded (σ, the switch, the records and the mounting all ask)."""
+        if self._covariance[0] != self.solver.n_obs:
+            self._covariance = (self.solver.n_obs, self.solver.covariance())
+        return self._covariance[1]
+
     @property
     def resolved(self) -> bool:
         """Whether the fit has fixed every axis of the mounting (its heading σ within :data:`LINEAR_LIMIT_DEG`)."""
-        covariance = self.solver.covariance()
+        covariance = self.fit_covariance()
         return covariance is not None and PHASE1_SIGMA_FACTOR * np.sqrt(np.max(np.diag(covariance))) <= (
             LINEAR_LIMIT_DEG * DEG)
 
@@ -78,7 +87,7 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
         """1-sigma (heading, level) in rad of the slave's attitude from the fit's noise alone: the mounting's
         covariance in the master's axes turned into n0, and the slave's gyro drift since the start; None
         before the fit has residual degrees of freedom."""
-        covariance = self.solver.covariance()
+        covariance = self.fit_covariance()
         if covariance is None:
             return None
         P = self.source.P_first
@@ -199,14 +208,14 @@ class TransferPipeline(GyroRateAidPipeline):
         (of ``coarse``, the pipeline's own by default, or a scratch copy run ahead)."""
         if self.fine is not None and self.fine.active:
             attitude: MasterAttitude = self.fine.measurements["master_att"]
-            mu = self.fine.extra("master_att")
-            sigma = float(np.sqrt(np.max(np.diag(self.fine.P)[-3:]))) / DEG
-            return attitude.mounting(mu), sigma
+            mu = self.fine.extra_slice("master_att")
+            sigma = float(np.sqrt(np.max(np.diag(self.fine.P)[mu]))) / DEG
+            return attitude.mounting(self.fine.x[mu]), sigma
         coarse = coarse or self.coarse
         nominal, nominal_sigma = coarse.best_mounting()
         if nominal_sigma is not None:
             return nominal, nominal_sigma / DEG
-        covariance = coarse.solver.covariance()
+        covariance = coarse.fit_covariance()
         sigma = SIGMA_UNKNOWN_DEG if covariance is None else min(
             PHASE1_SIGMA_FACTOR * float(np.sqrt(np.max(np.diag(covariance)))) / DEG, SIGMA_UNKNOWN_DEG)
         return coarse.mounting, sigma

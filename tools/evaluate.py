@@ -82,29 +82,26 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     if initial_error_deg is not None:
         phi = np.asarray(initial_error_deg, dtype=float) * DEG
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
-    feed = None
+    feed, kind, faults = None, None, aid_faults or {}
     if scenario.gnss is not None:
         if gnss_lever_stated:
             # the antenna's lever arm as its log would state it
             config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
-        epochs = with_gnss_faults(gnss_epochs(scenario, seed), **(aid_faults or {}))
-        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"gnss": None},
-                                  live)
-        feed = AidingFeed(AidingTrack(6, config.aiding.gnss_latency_s, config.aiding.max_gap_s), iter([epochs]))
+        kind, noise, epochs = "gnss", None, with_gnss_faults(gnss_epochs(scenario, seed), **faults)
     elif scenario.master is not None:
-        epochs = with_master_faults(master_epochs(scenario, seed), **(aid_faults or {}), seed=seed)
-        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(),
-                                  {"master": None}, live)
-        feed = AidingFeed(AidingTrack(10, config.aiding.master_latency_s, config.aiding.max_gap_s), iter([epochs]))
-    elif scenario.odometer is None:
+        kind, noise, epochs = "master", None, with_master_faults(master_epochs(scenario, seed), **faults, seed=seed)
+    elif scenario.odometer is not None:
+        kind, noise = "odo", scenario.odometer.noise_mps or None
+        epochs = with_odometer_faults(odometer_epochs(scenario, seed), **faults, seed=seed)
+    if kind is None:
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
                                      initial_q_b_n=initial)
     else:
-        epochs = with_odometer_faults(odometer_epochs(scenario, seed), **(aid_faults or {}), seed=seed)
-        odo_std = scenario.odometer.noise_mps or None
-        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(),
-                                  {"odo": odo_std}, live)
-        feed = AidingFeed(AidingTrack(3, config.aiding.odo_latency_s, config.aiding.max_gap_s), iter([epochs]))
+        # the aided pipeline, its readings through the same aiding track as a log's
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {kind: noise},
+                                  live)
+        track = AidingTrack(epochs.shape[1] - 1, getattr(config.aiding, f"{kind}_latency_s"), config.aiding.max_gap_s)
+        feed = AidingFeed(track, iter([epochs]))
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                           seed):

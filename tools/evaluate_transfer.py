@@ -21,7 +21,7 @@ from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.transfer_ekf import EkfSettings, run_transfer_ekf
 from sinsalign.service.config import Config, config_from_mapping
 
-from .evaluate import RunResult, monte_carlo, run_limit_deg, run_once, run_parallel
+from .evaluate import COARSE_ONLY, RunResult, monte_carlo, run_limit_deg, run_once, run_parallel
 from .evaluate_aided import fine_honesty
 from .evaluate_gnss import plot_heading_runs, summed_counters
 from .sim.aiding import master_epochs
@@ -39,7 +39,7 @@ FAULTS_LABEL = "dual model + master faults"
 VARIANTS: tuple[tuple[str, dict, dict | None], ...] = (
     ("dual model (switch by σ)", {}, None),
     ("dual model (switch at 10 s, the seed's)", {"aiding": {"master_handover_s": 10.0}}, None),
-    ("phase 1 alone (one large-angle model)", {"fine": {"enabled": False}}, None),
+    ("phase 1 alone (one large-angle model)", COARSE_ONLY, None),
     (FAULTS_LABEL, {"aiding": {"master_latency_s": LATE_S}}, MASTER_FAULTS),
 )
 """(label, configuration overrides, master faults)."""
@@ -91,8 +91,6 @@ def plot_seed002(runs_by_variant: dict[str, list[RunResult]], path: str | Path) 
                              "master dropout")
 
 
-PHASE1_ALONE = {"fine": {"enabled": False}}
-"""The pipeline stopped after phase 1: our closed form alone."""
 COMPARISON_AT_S = (2.0, 5.0, 10.0, 60.0)
 LARGE_MOUNT_DEG = (60.0, -45.0, 120.0)
 CLOSED_FORM, EKF, EKF_QUATERNION = "closed", "ekf", "ekf-quaternion"
@@ -145,14 +143,14 @@ def _comparison_task(args: tuple[str, tuple[float, float, float], int]) -> RunRe
     method, mount_deg, seed = args
     scenario = mounted_scenario(mount_deg)
     if method == CLOSED_FORM:
-        return run_once(scenario, seed, config_from_mapping(PHASE1_ALONE))
+        return run_once(scenario, seed, config_from_mapping(COARSE_ONLY))
     return ekf_run_once(scenario, seed, velocity_matching=method == EKF)
 
 
 def comparison_runs(method: str, mount_deg: Sequence[float], seeds: Sequence[int], progress: bool = True,
                     label: str = "", workers: int | None = None) -> list[RunResult]:
     """Every seed of one method on one mounting (in parallel processes), in seed order. The closed form on the
-    seed's mounting is ``monte_carlo("seed002", seeds, PHASE1_ALONE)``."""
+    seed's mounting is ``monte_carlo("seed002", seeds, COARSE_ONLY)``."""
     tasks = [(method, tuple(float(v) for v in mount_deg), s) for s in seeds]
     return run_parallel(_comparison_task, tasks, label or method, progress, workers)
 

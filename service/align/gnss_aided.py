@@ -116,8 +116,14 @@ class GnssSource:
         clone._integrals = {name: copy.copy(integral) for name, integral in self._integrals.items()}
         return clone
 
-    def _C_n_n0(self, elapsed_s: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+    def C_n_n0_at(self, elapsed_s: np.ndarray, lat: np.ndarray, lon: np.ndarray) -> np.ndarray:
+        """C_{n(t)}^{n0} (..., 3, 3) at times ``elapsed_s`` (s since the start) and positions lat, lon (rad); after
+        the first epoch."""
         return self._C_e_n0 @ earth_turn(elapsed_s) @ C_n_e(lat, lon)
+
+    def span_s(self, elapsed_s: np.ndarray) -> np.ndarray:
+        """T = t − t_first (N,) s of the epochs (0 before the first epoch is known)."""
+        return elapsed_s - (self.t_first if self.t_first is not None else elapsed_s)
 
     def accumulate(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray) -> None:
         """Every integrated IMU sample (time since the start (N,) s, α (N, 3) m/s), before :meth:`vectors`."""
@@ -135,7 +141,7 @@ class GnssSource:
             self._C_e_n0 = C_n_e(lat[0], lon[0]).T
             self._omega_ie_n0 = self._C_e_n0 @ np.array([0.0, 0.0, OMEGA_IE])
             self.t_first = float(elapsed_s[0])
-        C_n_n0 = self._C_n_n0(elapsed_s, lat, lon)
+        C_n_n0 = self.C_n_n0_at(elapsed_s, lat, lon)
         self._fixes = (elapsed_s, lat, lon)
         b, r = self._pairs(elapsed_s, alpha_b0, dcm_from_quat(q_b_b0), aid, C_n_n0)
         if self._first is None:
@@ -161,7 +167,7 @@ class GnssSource:
         if self._R_first is None:
             self._R_first = R[0].copy()
         dR = R - self._R_first                       # the differences first: R is ~6.4e6 m
-        span = (elapsed_s - self.t_first)[:, None]
+        span = self.span_s(elapsed_s)[:, None]
         omega = self._omega_ie_n0
         J = dR - cross(omega, self._integrals["dR"].extend(elapsed_s, dR)) - span * cross(omega, self._R_first)
         g_up = normal_gravity(aid[:, 0] * DEG, aid[:, 2])[:, None] * C_n_n0[:, :, 2]
@@ -177,7 +183,7 @@ class GnssSource:
         if self._C_e_n0 is None:
             return np.eye(3)
         elapsed, lat, lon = self._fixes
-        return self._C_n_n0(np.asarray(elapsed_s), np.interp(elapsed_s, elapsed, lat),
+        return self.C_n_n0_at(np.asarray(elapsed_s), np.interp(elapsed_s, elapsed, lat),
                             np.interp(elapsed_s, elapsed, lon))
 
 
@@ -236,12 +242,11 @@ class GnssPositionSource(GnssSource):
 
     def drift_regressor(self, elapsed_s: np.ndarray) -> np.ndarray:
         """1/T (0 at the first fix, T = 0): the first fix's error over the span."""
-        span = elapsed_s - (self.t_first if self.t_first is not None else elapsed_s)
+        span = self.span_s(elapsed_s)
         return np.divide(1.0, span, out=np.zeros_like(span), where=span > 0.0)
 
     def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
         """μ (N,) m²/s² per axis of the pairs: position noise over the span, plus the velocity-grade noise the
         integrated IMU errors reach (inf at the first fix: weight 0)."""
-        span = elapsed_s - (self.t_first if self.t_first is not None else elapsed_s)
         with np.errstate(divide="ignore"):
-            return (self.pos_std_m / span) ** 2 + self.vel_std_mps**2
+            return (self.pos_std_m / self.span_s(elapsed_s)) ** 2 + self.vel_std_mps**2

@@ -77,7 +77,7 @@ class MasterSource:
         b_v, r_v = self.velocity.vectors(elapsed_s, alpha_b0, q_b_b0,
                                          np.column_stack((aid[:, 7:10], aid[:, 4:7], aid[:, 10:13])))
         lat, lon = np.radians(aid[:, 7]), np.radians(aid[:, 8])
-        P = self.velocity._C_n_n0(elapsed_s, lat, lon) @ dcm_from_quat(aid[:, :4])
+        P = self.velocity.C_n_n0_at(elapsed_s, lat, lon) @ dcm_from_quat(aid[:, :4])
         S = dcm_from_quat(q_b_b0)
         if self._P_first is None:
             self._P_first, self._S_first = P[0].copy(), S[0].copy()
@@ -90,7 +90,7 @@ class MasterSource:
     def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
         """μ (2M,) per axis, interleaved as the pairs: velocity (m²/s²) and attitude (rad²), the master's noise
         plus the slave's biases integrated since t_f."""
-        span = elapsed_s - (self.velocity.t_first if self.velocity.t_first is not None else elapsed_s)
+        span = self.velocity.span_s(elapsed_s)
         velocity = self.vel_std_mps**2 + (self.acc_bias_ms2 * span) ** 2
         attitude = 2.0 * self.att_std_rad**2 + (self.gyro_bias_rad_s * span) ** 2
         return np.stack((velocity, attitude), axis=1).reshape(-1)
