@@ -224,8 +224,9 @@ def _check(config: Config) -> Config:
         except ValueError as exc:
             raise ConfigError(f"{key}: {exc}") from None
     ad = config.aiding
-    if ad.solver not in SOLVERS:
-        raise ConfigError(f"aiding.solver: {ad.solver!r} is not one of {', '.join(SOLVERS)}")
+    if ad.solver not in SOLVERS or ad.solver == "gls":
+        raise ConfigError(f"aiding.solver: {ad.solver!r} is not one of {', '.join(s for s in SOLVERS if s != 'gls')} "
+                          "(gls models a fixed base)")
     unknown = [k for k in ad.inputs if k not in AIDING_KINDS]
     if unknown or len(set(ad.inputs)) != len(ad.inputs):
         raise ConfigError(f"aiding.inputs: {list(ad.inputs)} must name distinct kinds among {', '.join(AIDING_KINDS)}")

@@ -124,8 +124,9 @@ class AlignmentPipeline:
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment
-        return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, make_solver(a.solver, a.request_rho),
-                                       self.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
+        solver = make_solver(a.solver, a.request_rho, self.grade, self.site.gravity, a.disturbance_velocity_mps)
+        return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, solver, self.sample_period_s,
+                                       a.obs_interval_s, a.disturbance_velocity_mps)
 
     def _make_fine(self) -> FineAlignment | None:
         if not self._with_fine:

@@ -47,9 +47,10 @@ def _overrides(args: argparse.Namespace) -> dict:
 def _add_alignment_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("alignment (override the configuration file)")
     g.add_argument("--config", metavar="FILE", help="TOML configuration (see README, 'Configuration')")
-    g.add_argument("--solver", choices=("opreq", "request", "qmethod", "centred"),
+    g.add_argument("--solver", choices=("opreq", "request", "qmethod", "centred", "gls"),
                    help="opreq: optimal fading gain (default); request: fixed gain --rho; qmethod: batch OBA; "
-                   "centred: Wahba with a free constant offset (for the aided modes)")
+                   "centred: Wahba with a free constant offset (for the aided modes); gls: generalised least "
+                   "squares on whitened α increments (fixed base; at the gyro's noise floor, see README)")
     g.add_argument("--rho", type=float, help="fixed fading gain of --solver request, e.g. 0.01")
     g.add_argument("--obs-interval", type=float, metavar="S", help="seconds between vector observations (0.1)")
     g.add_argument("--no-fine", action="store_true", help="OPREQ coarse alignment only (no compass hand-over)")

@@ -31,8 +31,10 @@ def test_sigma_is_unknown_before_time_and_shrinks_to_the_bias_floor():
     assert late.level_deg == pytest.approx(50 * UG_TO_MS2 / 9.8 / DEG, rel=0.05)
 
 
-def test_noise_free_swing_is_exact():
-    run = run_once(get_scenario("seed000-swing-ideal"), 0, config_from_mapping(COARSE_ONLY))
+@pytest.mark.parametrize("solver", ["opreq", "gls"])
+def test_noise_free_swing_is_exact(solver):
+    run = run_once(get_scenario("seed000-swing-ideal"), 0, config_from_mapping({"alignment": {"solver": solver},
+                                                                              **COARSE_ONLY}))
     after = run.t >= 30
     assert np.abs(run.phi_deg[after, 2]).max() < 0.001
     assert np.abs(run.phi_deg[after, :2]).max() < 0.0005
@@ -63,12 +65,35 @@ def test_static_base_600_s():
 
 
 def test_turntable_with_a_noisy_gyro():
-    runs = monte_carlo("seed000-turntable", SEEDS, COARSE_ONLY, progress=False)
-    s = window_stats(runs, (201, 300))
-    assert abs(s.heading_mean) <= 0.05
-    # issue 3 asks ≤ 0.12° (floor ≈ 0.1°); measured 0.121° on these seeds: a known gap, guarded here
+    """OPREQ leaves the gyro's angle random walk out of its noise model (it cannot weigh a walk); the GLS
+    solver whitens it and reaches the walk's floor N / (Ω cos L √T) (issue 3: seed STD ≤ 0.12°)."""
+    opreq = monte_carlo("seed000-turntable", SEEDS, COARSE_ONLY, progress=False)
+    gls = monte_carlo("seed000-turntable", SEEDS, {"alignment": {"solver": "gls"}, **COARSE_ONLY}, progress=False)
+    s, g = window_stats(opreq, (201, 300)), window_stats(gls, (201, 300))
+    assert abs(s.heading_mean) <= 0.05 and abs(g.heading_mean) <= 0.05
+    # measured 0.121° for OPREQ on these seeds (a known gap, guarded here), 0.098° for GLS
     assert s.heading_seed_std <= 0.125
-    assert honesty(runs).converged_beyond_3sigma == 0
+    assert g.heading_seed_std <= 0.12
+    assert g.heading_seed_std < 0.9 * s.heading_seed_std
+    scenario = get_scenario("seed000-turntable")
+    floor_deg = scenario.grade.gyro_arw_rad_rts / (OMEGA_IE * np.cos(scenario.site.lat) * np.sqrt(300.0)) / DEG
+    final = np.sqrt(np.mean([(r.phi_deg[-1, 2] - r.limit_deg[2]) ** 2 for r in gls]))
+    assert final <= 1.3 * floor_deg      # measured 1.07× over 100 seeds; 20 seeds scatter ±16 %
+    assert honesty(opreq).converged_beyond_3sigma == 0 and honesty(gls).converged_beyond_3sigma == 0
+
+
+def test_gls_on_the_swing_keeps_the_limit_without_opreqs_offset():
+    """The swinging body turns the accelerometer bias; OPREQ's direction fit takes +0.004° of it as heading,
+    the whitened-increment fit (its disturbance term) almost none."""
+    runs = monte_carlo("seed000-swing", SEEDS, {"alignment": {"solver": "gls"}, **COARSE_ONLY}, progress=False)
+    s = window_stats(runs, (101, 200))
+    assert abs(s.heading_mean) <= 0.002          # measured +0.0006° (OPREQ +0.0040°)
+    assert s.heading_seed_std <= 0.01
+    assert s.heading_inwindow_std <= 0.0045      # measured 0.0042°: the efficient fit wanders more (README)
+    assert abs(s.level_east_mean) <= 0.001 and abs(s.level_north_mean) <= 0.001
+    assert np.median([settling_time_s(r) for r in runs]) <= 30.0
+    h = honesty(runs)
+    assert h.fraction_within_2sigma >= 0.90 and h.converged_beyond_3sigma == 0
 
 
 def test_opreq_settles_faster_than_fixed_request_and_matches_the_batch_q_method(swing_runs):

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 from sinsalign.service.align.conventions import DEG, dcm_from_euler, dcm_from_quat, misalignment
-from sinsalign.service.align.solvers import RecursiveK, delta_K, request_noise
+from sinsalign.service.align.earth import beta_fixed
+from sinsalign.service.align.solvers import RecursiveK, WhitenedWahba, delta_K, request_noise
 
 
 def random_pairs(n: int, C_b_n: np.ndarray, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
@@ -139,3 +140,54 @@ def test_the_screen_reopens_after_a_run_of_rejections_instead_of_locking_the_dat
     error_deg = np.degrees(np.abs(misalignment(dcm_from_quat(solver.quaternion()), late)).max())
     assert solver.reopened >= 1 and solver.rejected >= GATE_REOPEN_PAIRS
     assert error_deg < 1.0                       # locked out, it would have stayed 5° off
+
+
+def whitened(arw: float = 2e-6, vrw: float = 3.5e-5, disturbance: float = 1e-3) -> WhitenedWahba:
+    return WhitenedWahba(vrw, arw, 9.8, disturbance)
+
+
+def test_whitened_wahba_recovers_the_attitude_from_exact_cumulative_pairs():
+    """GIVEN α = A β exactly on a fixed site, THEN the whitened pairs keep ẽb = A ẽr and the fit is exact."""
+    C = dcm_from_euler(-130 * DEG, 4 * DEG, -7 * DEG)           # C_b^n(0): α = C^T β
+    t = np.arange(1, 3001) * 0.1
+    r = beta_fixed(32 * DEG, 9.8, t)
+    s = whitened()
+    outer, pairs = s.prepare(r @ C, r, None, t)
+    np.testing.assert_allclose(pairs[:, :3], pairs[:, 3:6] @ C, atol=1e-9)
+    s.fold(outer, pairs)
+    assert np.abs(misalignment(dcm_from_quat(s.quaternion()), C)).max() < 1e-9
+
+
+def test_the_whitening_filter_turns_the_modelled_noise_into_white_unit_innovations():
+    """GIVEN increment noise n_k = g Δt θ_k + (v_k − v_{k−1}) + w_k drawn from the model, THEN the filter's
+    innovations divided by √S_k have unit variance and no correlation from one epoch to the next."""
+    rng = np.random.default_rng(7)
+    arw, vrw, vd, dt, epochs, runs = 2e-5, 3.5e-5, 1e-4, 0.1, 300, 300
+    t = np.arange(1, epochs + 1) * dt
+    z = np.empty((runs, epochs, 3))
+    for j in range(runs):
+        theta = np.cumsum(rng.standard_normal((epochs, 3)) * arw * np.sqrt(dt), axis=0)
+        v = rng.standard_normal((epochs + 1, 3)) * vd
+        noise = 9.8 * dt * theta + np.diff(v, axis=0) + rng.standard_normal((epochs, 3)) * vrw * np.sqrt(dt)
+        alpha = np.cumsum(noise, axis=0)                     # cumulative: what the solver is given
+        _, pairs = whitened(arw, vrw, vd).prepare(alpha, np.zeros_like(alpha), None, t)
+        z[j] = pairs[:, :3] * np.sqrt(pairs[:, 6:7])         # innovation / √S (the weight is 1/S)
+    for k in (0, 10, 100, epochs - 1):
+        assert np.var(z[:, k]) == pytest.approx(1.0, abs=0.1)
+    lag1 = np.mean(z[:, 1:] * z[:, :-1])
+    assert abs(lag1) < 0.02
+    # the raw increments are far from white: the same statistic on them shows the walk
+    raw = np.diff(np.concatenate((np.zeros((1, 3)), alpha)), axis=0)
+    assert abs(np.corrcoef(raw[1:, 0], raw[:-1, 0])[0, 1]) > abs(lag1)
+
+
+def test_whitened_blocks_equal_one_at_a_time():
+    C = dcm_from_euler(1.0, 0.1, -0.1)
+    t = np.arange(1, 41) * 0.1
+    r = beta_fixed(45 * DEG, 9.8, t) + np.random.default_rng(3).standard_normal((40, 3)) * 1e-3
+    whole, single = whitened(), whitened()
+    whole.fold(*whole.prepare(r @ C, r, None, t))
+    for k in range(40):
+        single.fold(*single.prepare(r[k:k + 1] @ C, r[k:k + 1], None, t[k:k + 1]))
+    assert np.array_equal(whole.S_br, single.S_br)
+    assert np.array_equal(whole.quaternion(), single.quaternion())

@@ -232,7 +232,8 @@ SOLVER_VARIANTS = (("OPREQ", {"solver": "opreq"}), ("q-method (OBA)", {"solver":
                    ("REQUEST ρ=0.1", {"solver": "request", "request_rho": 0.1}),
                    ("REQUEST ρ=0.01", {"solver": "request", "request_rho": 0.01}),
                    ("REQUEST ρ=0.001", {"solver": "request", "request_rho": 0.001}),
-                   ("centred Wahba (free offset)", {"solver": "centred"}))
+                   ("centred Wahba (free offset)", {"solver": "centred"}),
+                   ("GLS (whitened increments)", {"solver": "gls"}))
 
 
 def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tuple[str, dict[str, list[RunResult]]]:

@@ -15,7 +15,7 @@ import numpy as np
 from .conventions import dcm_from_quat, quat_from_dcm
 from .observations import ObservationSource
 from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
-from .solvers import CentredWahba, RecursiveK
+from .solvers import CentredWahba, RecursiveK, WhitenedWahba
 from .strapdown import InertialIntegrator
 
 
@@ -113,6 +113,8 @@ class InertialCoarseAlignment:
     def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The solver's prepared pairs taken at ``elapsed_s``, with OPREQ's noise model μ of the unit vectors."""
         mu = self.grade.observation_variance(elapsed_s, self._gravity, self.disturbance_velocity_mps)
+        if isinstance(self.solver, WhitenedWahba):   # it whitens the increments between the epochs itself
+            return self.solver.prepare(b, r, mu, elapsed_s)
         return self.solver.prepare(b, r, mu)
 
     def scratch(self) -> InertialCoarseAlignment:

@@ -8,6 +8,11 @@ They differ only in the gain ρ_k that blends a new observation into K:
 - REQUEST: a fixed fading gain ρ;
 - batch q-method (OBA): ρ_k = 1/(k+1), the equally weighted sum of every δK, streamed.
 
+:class:`WhitenedWahba` ("gls") is the generalised least-squares solution of the same problem on a
+fixed base: it fits the α increments, whitened for the noise they actually carry (the gyro's angle
+random walk, the accelerometer's white noise, a bounded velocity disturbance), so every pair gets
+the weight its information earns.
+
 :class:`CentredWahba` ("centred") solves a different problem on the same pairs, unnormalised:
 b_k = A r_k + c with an unknown constant c common to all pairs (Kabsch). Aided modes need it:
 their α holds the first aiding sample V^b(0) (or V^n(0)) as such a constant, and one noisy
@@ -19,11 +24,16 @@ and r in navigation axes A = C_n^b, so the Hamilton quaternion of C_b^n is [q_4,
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .conventions import cross, dcm_from_quat, quat_normalize
 
-SOLVERS = ("opreq", "request", "qmethod", "centred")
+if TYPE_CHECKING:
+    from .sensor_model import SensorGrade
+
+SOLVERS = ("opreq", "request", "qmethod", "centred", "gls")
 
 
 def delta_K(b: np.ndarray, r: np.ndarray) -> np.ndarray:
@@ -146,6 +156,8 @@ class CentredWahba:
     interface as :class:`RecursiveK` (``prepare``/``fold``/``quaternion``), so the coarse stage and
     the pipeline use either. ``rho`` and ``trace_P`` are reported as 1/n and NaN.
 
+    offset : False drops the constant c (and the drift): plain weighted Wahba on unnormalised pairs.
+
     weighted : weight each pair by 1/μ, μ the variance ``prepare`` is given (else equal weights,
         μ ignored). A weighted fit's residual variance is then in units of the stated noise.
     drift : a second nuisance vector c₁ times the scalar ``s`` given to ``prepare`` per pair (the
@@ -160,12 +172,13 @@ class CentredWahba:
 
     solver = "centred"
 
-    def __init__(self, weighted: bool = False, gate_chi2: float | None = None, drift: bool = False) -> None:
+    def __init__(self, weighted: bool = False, gate_chi2: float | None = None, drift: bool = False,
+                 offset: bool = True) -> None:
         if gate_chi2 is not None and not weighted:
             raise ValueError("screening pairs needs their stated noise: weighted=True")
         self.weighted = weighted
         self.gate_chi2 = gate_chi2
-        m = 2 if drift else 1
+        m = (2 if drift else 1) if offset else 0
         self.S_zz = np.zeros((m, m))   # Σ w z zᵀ, Σ w b zᵀ, Σ w r zᵀ: the nuisance terms' sums
         self.S_bz = np.zeros((3, m))
         self.S_rz = np.zeros((3, m))
@@ -185,7 +198,8 @@ class CentredWahba:
         """(w b rᵀ (M, 3, 3), [b, r, w, z] (M, 7 + m)) of M pairs, for :meth:`fold`; ``s`` (M,) the drift
         regressor (with ``drift``)."""
         w = 1.0 / np.asarray(mu, dtype=float) if self.weighted else np.ones(len(b))
-        z = [np.ones(len(b))] + ([np.asarray(s, dtype=float)] if len(self.S_zz) == 2 else [])
+        m = len(self.S_zz)
+        z = [np.ones(len(b))] * min(m, 1) + ([np.asarray(s, dtype=float)] if m == 2 else [])
         return w[:, None, None] * b[:, :, None] * r[:, None, :], np.column_stack((b, r, w, *z))
 
     def fold(self, outer: np.ndarray, pairs: np.ndarray) -> None:
@@ -223,7 +237,7 @@ class CentredWahba:
 
     def _nuisance_inverse(self) -> np.ndarray:
         """(Σ w z zᵀ)⁺: zero before any weight (pseudo-inverse: a drift regressor that has not varied yet)."""
-        return np.linalg.pinv(self.S_zz) if self.S_zz[0, 0] > 0.0 else np.zeros_like(self.S_zz)
+        return np.linalg.pinv(self.S_zz) if self.S_zz.size and self.S_zz[0, 0] > 0.0 else np.zeros_like(self.S_zz)
 
     def _centred(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The sums with the nuisance terms projected out: (Σ w b̃ r̃ᵀ, Σ w r̃ r̃ᵀ, Σ w |b̃|²)."""
@@ -244,8 +258,9 @@ class CentredWahba:
         return K
 
     def quaternion(self) -> np.ndarray:
-        """Current estimate of C_b^n(0) as [w, x, y, z]; identity before two observations."""
-        if self.n_obs < 2:
+        """Current estimate of C_b^n(0) as [w, x, y, z]; identity before two observations (one without
+        an offset)."""
+        if self.n_obs < min(len(self.S_zz), 1) + 1:
             return np.array([1.0, 0.0, 0.0, 0.0])
         return quaternion_from_K(self.K)
 
@@ -335,6 +350,71 @@ class GroupedWahba:
         return np.linalg.inv(information + 1e-30 * np.eye(3))
 
 
+class WhitenedWahba(CentredWahba):
+    """Generalised least squares for b = A r on a fixed base: α increments, whitened, in a weighted Wahba.
+
+    Pairs are the increments Δb_k = α(t_k) − α(t_{k-1}) (b0 axes) and Δr_k = β(t_k) − β(t_{k-1})
+    (n0 axes), m/s, so Δb_k = A Δr_k + n_k with the noise, per axis,
+
+        n_k = g Δt_k θ_k + (v_k − v_{k-1}) + w_k,
+
+    θ_k the gyro's angle random walk in C_b^{b0} (density ``arw_rad_rts``), w_k the accelerometer's
+    white noise over the interval (variance VRW² Δt_k) and v_k a bounded velocity-like disturbance
+    (independent, variance ``disturbance_velocity_mps``²; the same figure as OPREQ's μ). The noise is
+    far from white: θ walks, and OPREQ must leave it out of μ (sensor_model.observation_variance).
+    A Kalman filter of that noise, state [θ_k, v_k, v_{k-1}] per axis, turns it into its innovations
+    e_k (white, variance S_k). Being linear, the same filter run on the Δb and on the Δr sequences
+    gives pairs ẽb_k = A ẽr_k + e_k exactly; their weighted Wahba (weights 1/S_k) is the maximum-
+    likelihood attitude. The gyro bias ramps θ like a heading error ramps the data, so the result
+    keeps the §3.3 limit.
+
+    Memory O(1): the last epoch and α, β; the two filters' states (3, 6); the filter covariance.
+    ``prepare`` runs the filters (sequentially: same bits however the pairs are grouped into calls);
+    ``fold`` adds the whitened pairs to the Wahba sums.
+    """
+
+    solver = "gls"
+
+    def __init__(self, vrw_ms_rts: float, arw_rad_rts: float, gravity: float,
+                 disturbance_velocity_mps: float = 1e-3) -> None:
+        super().__init__(weighted=True, offset=False)
+        self._white = vrw_ms_rts**2
+        self._walk = arw_rad_rts**2
+        self._disturbance = disturbance_velocity_mps**2
+        self._gravity = gravity
+        self._last = np.zeros(7)                 # [t, α (3), β (3)] of the last epoch: t = 0 at the start
+        self._state = np.zeros((3, 6))           # rows θ, v_k, v_{k-1}; columns: the b and the r sequence
+        # P as its six distinct entries (00, 01, 02, 11, 12, 22); at the start v_0 is unknown, θ_0 = 0
+        self._P = (0.0, 0.0, 0.0, self._disturbance, 0.0, 0.0)
+
+    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray, elapsed_s: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Whitened increment pairs of the cumulative b = α (M, 3) and r = β (M, 3) at ``elapsed_s`` (M,)
+        seconds after the start, for :meth:`fold`. ``mu`` (OPREQ's model) is not used."""
+        elapsed_s = np.asarray(elapsed_s, dtype=float)
+        db, dr, S = np.empty_like(b), np.empty_like(r), np.empty(len(b))
+        last, x = self._last, self._state
+        p00, p01, p02, p11, p12, p22 = self._P
+        for k in range(len(b)):
+            now = np.concatenate(([elapsed_s[k]], b[k], r[k]))
+            dt = now[0] - last[0]
+            # predict: θ walks, v_k becomes v_{k-1}, a fresh v_k
+            p00, p01, p02, p11, p12, p22 = p00 + self._walk * dt, 0.0, p01, self._disturbance, 0.0, p11
+            x = np.array([x[0], np.zeros(6), x[1]])
+            h = self._gravity * dt                                   # n_k = [h, 1, -1] · state + w_k
+            PH = (h * p00 + p01 - p02, h * p01 + p11 - p12, h * p02 + p12 - p22)
+            S[k] = h * PH[0] + PH[1] - PH[2] + self._white * dt
+            innovation = now[1:] - last[1:] - (h * x[0] + x[1] - x[2])
+            gain = np.array(PH) / S[k]
+            x = x + gain[:, None] * innovation
+            p00, p01, p02 = p00 - gain[0] * PH[0], p01 - gain[0] * PH[1], p02 - gain[0] * PH[2]
+            p11, p12, p22 = p11 - gain[1] * PH[1], p12 - gain[1] * PH[2], p22 - gain[2] * PH[2]
+            db[k], dr[k] = innovation[:3], innovation[3:]
+            last = now
+        self._last, self._state, self._P = last, x, (p00, p01, p02, p11, p12, p22)
+        return super().prepare(db, dr, S)
+
+
 GATE_MIN_PAIRS = 20
 """Pairs the fit needs before it screens new ones (its residual variance means little before)."""
 GATE_REOPEN_PAIRS = 30
@@ -342,6 +422,12 @@ GATE_REOPEN_PAIRS = 30
 glitch)."""
 
 
-def make_solver(name: str, rho: float = 0.01) -> RecursiveK | CentredWahba:
-    """The solver named in the configuration (``alignment.solver``)."""
+def make_solver(name: str, rho: float = 0.01, grade: SensorGrade | None = None, gravity: float = 9.8,
+                disturbance_velocity_mps: float = 1e-3) -> RecursiveK | CentredWahba:
+    """The solver named in the configuration (``alignment.solver``); "gls" needs the sensor ``grade``, the
+    site's gravity (m/s²) and the disturbance figure of its noise model."""
+    if name == "gls":
+        if grade is None:
+            raise ValueError("the gls solver needs the sensor grade for its noise model")
+        return WhitenedWahba(grade.acc_vrw_ms_rts, grade.gyro_arw_rad_rts, gravity, disturbance_velocity_mps)
     return CentredWahba() if name == "centred" else RecursiveK(name, rho)
