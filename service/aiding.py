@@ -8,7 +8,9 @@ interpolation between the two epochs around each, or NaN (counted) when they are
 than ``max_gap_s`` or the sample lies outside the epochs held. Nothing here is fatal.
 
 The track holds the epochs not yet passed by the IMU samples asked for (:meth:`release`), so its
-memory is bounded by the aiding latency (daemon) or the replay chunk, whatever the run length.
+memory is bounded by the aiding latency (daemon) or the replay chunk, whatever the run length. An
+aiding stream that runs far ahead of the IMU (the IMU link down while the aiding keeps coming, or a
+clock mismatch) fills it to ``capacity`` epochs; beyond that new epochs are dropped and counted.
 """
 from __future__ import annotations
 
@@ -31,6 +33,11 @@ class AidingCounters(Counters):
     non_finite: int = 0
     gaps: int = 0                 # epochs that follow the previous one by more than max_gap_s
     unaided_queries: int = 0      # IMU times asked for without two epochs around them
+    overflow: int = 0             # epochs dropped because the track was full (the aiding far ahead of the IMU)
+
+
+MAX_HELD_EPOCHS = 1 << 16
+"""Epochs a track holds ahead of the IMU (10 min of 100-Hz aiding, 4 MiB for GNSS)."""
 
 
 class AidingTrack:
@@ -38,12 +45,15 @@ class AidingTrack:
 
     latency_s : how late the stream's time stamps are (subtracted).
     max_gap_s : two epochs further apart than this are not interpolated across.
+    capacity : epochs held at most; further ones are dropped (``overflow``) until the IMU passes some.
     """
 
-    def __init__(self, width: int, latency_s: float = 0.0, max_gap_s: float = 1.0) -> None:
+    def __init__(self, width: int, latency_s: float = 0.0, max_gap_s: float = 1.0,
+                 capacity: int = MAX_HELD_EPOCHS) -> None:
         self.width = width
         self.latency_s = latency_s
         self.max_gap_s = max_gap_s
+        self.capacity = capacity
         self.counters = AidingCounters()
         self._epochs = np.empty((64, 1 + width))
         self._n = 0
@@ -65,10 +75,13 @@ class AidingTrack:
                 else:
                     self.counters.out_of_order += 1
                 continue
+            if self._n >= self.capacity:
+                self.counters.overflow += 1
+                continue
             if last is not None and t - last > self.max_gap_s:
                 self.counters.gaps += 1
             if self._n == len(self._epochs):
-                self._epochs = np.concatenate((self._epochs, np.empty_like(self._epochs)))
+                self._epochs = np.concatenate((self._epochs, np.empty_like(self._epochs)))[:max(self.capacity, 1)]
             self._epochs[self._n, 0] = t
             self._epochs[self._n, 1:] = row[1:]
             self._n += 1

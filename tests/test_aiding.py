@@ -107,3 +107,21 @@ def test_feed_reads_ahead_only_as_far_as_the_imu_needs():
     assert len(pulled) == 1
     assert feed.values_at(np.array([2.55]))[0, 0] == pytest.approx(25.5) and len(pulled) == 3
     assert np.isnan(feed.values_at(np.array([20.0]))[0, 0])         # past the end: nothing, no error
+
+
+def test_a_track_far_ahead_of_the_imu_stays_bounded_and_counts_what_it_drops():
+    """GIVEN aiding that keeps coming while the IMU does not (link down, clock mismatch), THEN the track holds
+    at most ``capacity`` epochs, counts the rest as overflow (a fault in the status), and takes new epochs
+    again once the IMU has passed some."""
+    track = AidingTrack(3, capacity=100)
+    t = np.arange(150) * 0.01
+    track.push(np.column_stack((t, np.ones((150, 3)))))
+    assert track.counters.overflow == 50 and track.counters.epochs == 100
+    assert track._epochs.shape[0] <= 100
+    assert track.latest_time == pytest.approx(t[99])
+    track.release(t[60])                          # keeps epochs 60…99: room for 60 more
+    later = 2.0 + np.arange(70) * 0.01
+    track.push(np.column_stack((later, np.ones((70, 3)))))
+    assert track.counters.epochs == 160 and track.counters.overflow == 60
+    assert track._epochs.shape[0] <= 100
+    np.testing.assert_allclose(track.at(t[80]), [1.0, 1.0, 1.0])
