@@ -387,7 +387,7 @@ class WhitenedWahba(CentredWahba):
         # P as its six distinct entries (00, 01, 02, 11, 12, 22); at the start v_0 is unknown, θ_0 = 0
         self._P = (0.0, 0.0, 0.0, self._disturbance, 0.0, 0.0)
 
-    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray, elapsed_s: np.ndarray | None = None
+    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray | None, elapsed_s: np.ndarray
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Whitened increment pairs of the cumulative b = α (M, 3) and r = β (M, 3) at ``elapsed_s`` (M,)
         seconds after the start, for :meth:`fold`. ``mu`` (OPREQ's model) is not used."""
