@@ -32,6 +32,7 @@ from sinsalign.tools.sim.aiding import (
     gnss_epochs,
     master_epochs,
     odometer_epochs,
+    with_gnss_faults,
     write_body_velocity_log,
     write_gnss_log,
     write_master_log,
@@ -326,6 +327,29 @@ def test_the_daemon_runs_the_gnss_kalman_stage_on_serial_aiding_frames(tmp_path,
     records, counters, scenario = fly_with_gnss(tmp_path, pty_pair, running, "serial", handover_s=12.0)
     assert counters["gnss_vel_accepted"] > 0 and counters["gnss_pos_accepted"] > 0
     assert records[-1]["phase"] in ("fine", "aligned")
+    t, phi = attitude_errors_deg(scenario, records)
+    assert np.abs(phi[t >= 20.0, 2]).max() < 0.2
+
+
+def test_a_burst_of_gnss_glitches_in_the_kalman_stage_raises_the_screening_alarm_live(tmp_path, pty_pair, running):
+    """GIVEN a 2-s GNSS glitch (20 m/s east, 50 m north) after the Kalman stage has started, THEN the gate turns
+    the glitch fixes away (counted as screening, not faults), a status reports health "degraded" for the burst,
+    and the heading stays right."""
+    scenario = get_scenario("seed004").for_seed(1)
+    epochs = with_gnss_faults(gnss_epochs(scenario, 1)[:round(GNSS_SECONDS * scenario.gnss.rate_hz)],
+                              glitches=[(16.0, 2.0, 20.0, 50.0)])
+    started = []
+
+    def start(**sections) -> RunningDaemon:
+        started.append(running(**sections))
+        return started[-1]
+
+    records, counters, _ = run_aided(tmp_path, pty_pair, start, scenario, "gnss", epochs, GNSS_SECONDS, GNSS_SPEED,
+                                     GNSS_LATE_S, "serial", {"gnss_lever_m": list(scenario.gnss.lever_b),
+                                                             "max_wait_s": 10.0, "gnss_handover_s": 12.0})
+    assert counters["gnss_vel_rejected"] >= 10 and counters["gnss_pos_rejected"] >= 10
+    assert messages.faults(counters) == {}
+    assert "degraded" in [s["health"] for s in started[0].subscriber.status]
     t, phi = attitude_errors_deg(scenario, records)
     assert np.abs(phi[t >= 20.0, 2]).max() < 0.2
 
