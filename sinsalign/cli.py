@@ -241,20 +241,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    import json
     import os
 
     from sinsalign.protocol.imu_log import open_imu_log
     from sinsalign.service.align.conventions import DEG
+    from sinsalign.tools.sim.aiding import scenario_aiding
     from sinsalign.tools.sim.imu import simulate
     from sinsalign.tools.sim.scenarios import get_scenario
-    from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
-    pty = None
-    if args.port:
-        fd = os.open(args.port, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)
-        name = args.port
-    else:
-        pty = PtyPair()
-        fd, name = pty.master_fd, pty.port_name
+    from sinsalign.tools.virtual_imu import AidingPlayback, FramePlayer, PtyPair
     if args.log:
         chunks = open_imu_log(args.log).blocks()
         what = args.log
@@ -264,9 +259,27 @@ def cmd_bench(args: argparse.Namespace) -> int:
         chunks = ((c.t, c.dtheta, c.dv) for c in simulate(s.motion, s.site, s.errors, s.rate_hz, duration, args.seed))
         what = f"{args.scenario} seed {args.seed} (site lat {s.site.lat / DEG:.3f}°, "\
                f"{s.rate_hz:g} Hz: serve with --config giving [site] and [imu] to match)"
+    aiding = None
+    if args.aid:
+        aid = None if args.log else scenario_aiding(s, args.seed)
+        if aid is None:
+            print(f"--aid: {args.log or args.scenario} has no simulated aiding sensor (seed003-*, seed004, seed002 "
+                  "have)", file=sys.stderr)
+            return 2
+        kind, epochs, keys = aid
+        aiding = AidingPlayback(kind, epochs[epochs[:, 0] <= duration], args.aid_late)
+        table = ", ".join(f"{k} = {json.dumps(v)}" for k, v in keys.items())
+        what += f", with its {kind} epochs {args.aid_late:g} s late (serve --aid {kind}, [aiding] {table})"
+    pty = None
+    if args.port:
+        fd = os.open(args.port, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)
+        name = args.port
+    else:
+        pty = PtyPair()
+        fd, name = pty.master_fd, pty.port_name
     print(f"virtual IMU on {name}: playing {what} at ×{args.speed:g} in {args.start_delay:g} s", file=sys.stderr)
     time.sleep(args.start_delay)   # the reader's open() flushes what came before it
-    player = FramePlayer(fd, args.speed)
+    player = FramePlayer(fd, args.speed, aiding)
     try:
         player.play_chunks(chunks)
     except KeyboardInterrupt:
@@ -426,6 +439,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed", type=float, default=1.0, help="× real time (default 1)")
     p.add_argument("--port", metavar="PATH", help="write to this serial device instead of a new pty")
     p.add_argument("--start-delay", type=float, default=3.0, metavar="S", help="wait before playing (default 3 s)")
+    p.add_argument("--aid", action="store_true", help="also play the scenario's aiding sensor (odometer of seed003-*, "
+                   "GNSS of seed004, master INS of seed002) as serial aiding frames among the IMU frames; serve "
+                   "with the [aiding] table printed")
+    p.add_argument("--aid-late", type=float, default=0.2, metavar="S",
+                   help="how far behind the IMU frames the aiding epochs come (s of data, default 0.2)")
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("fuzz", help="long random-input run of the serial and msgpack decoders",

@@ -38,8 +38,8 @@ from sinsalign.tools.sim.aiding import (
     write_master_log,
 )
 from sinsalign.tools.sim.imu import ImuChunk, simulate
-from sinsalign.tools.sim.scenarios import Scenario, get_scenario
-from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
+from sinsalign.tools.sim.scenarios import Scenario, daemon_sections, get_scenario
+from sinsalign.tools.virtual_imu import AidingPlayback, FramePlayer, PtyPair, encode_samples, write_all
 from test_daemon_e2e import assert_same_as_replay, samples
 
 SECONDS = 20.0
@@ -159,13 +159,6 @@ def simulated_run(scenario: Scenario, seconds: float) -> ImuChunk:
     return chunk
 
 
-def scenario_sections(scenario: Scenario) -> dict[str, dict]:
-    """The daemon's [site] (degrees, metres), [imu] (Hz) and [sensor] (datasheet) tables for ``scenario``."""
-    return {"site": {"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
-                     "height_m": scenario.site.height_m},
-            "imu": {"rate_hz": scenario.rate_hz}, "sensor": scenario.grade.datasheet()}
-
-
 def send_late(publisher: zenoh.Publisher, kind: str, epochs: np.ndarray, speed: float,
               late_s: float) -> threading.Thread:
     """A started thread publishing aiding epochs (N, 1 + values: t in s, then the kind's pinned log columns)
@@ -187,15 +180,8 @@ def send_late(publisher: zenoh.Publisher, kind: str, epochs: np.ndarray, speed: 
 def frames_with_aiding(chunk: ImuChunk, kind: str, epochs: np.ndarray, late_s: float) -> bytes:
     """IMU frames (type 1) with an aiding frame (type 2) of ``kind`` for each epoch (N, 1 + values) interleaved
     ``late_s`` seconds of data after its time stamp (after the last IMU frame if that is later)."""
-    after = np.searchsorted(chunk.t, epochs[:, 0] + late_s)   # each epoch goes before IMU frame `after`
-    stream, j = [], 0
-    for k in range(len(chunk.t) + 1):
-        while j < len(epochs) and after[j] == k:
-            stream.append(encode_aiding(j, float(epochs[j, 0]), kind, epochs[j, 1:]))
-            j += 1
-        if k < len(chunk.t):
-            stream.append(encode_imu(k, float(chunk.t[k]), chunk.dtheta[k], chunk.dv[k]))
-    return b"".join(stream)
+    aiding = AidingPlayback(kind, epochs, late_s)
+    return encode_samples(chunk.t, chunk.dtheta, chunk.dv, 0, aiding) + aiding.rest()
 
 
 def assert_close_to_replay(received: list[dict], tmp_path: Path, config: Config, aids: dict[str, str]) -> None:
@@ -222,7 +208,7 @@ def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_o
     seconds, speed = 125.0, 25.0   # the default 120-s window, then the Kalman stage
     chunk = simulated_run(scenario, seconds)
     epochs = odometer_epochs(scenario, 1)[:round(seconds * 100)]
-    run = running(**scenario_sections(scenario), aiding={"inputs": ["odo"], "max_wait_s": 10.0})
+    run = running(**daemon_sections(scenario), aiding={"inputs": ["odo"], "max_wait_s": 10.0})
     daemon, subscriber = run.daemon, run.subscriber
     publisher = subscriber.session.declare_publisher(daemon.keys.aid("odo"),
                                                      congestion_control=zenoh.CongestionControl.BLOCK)
@@ -252,7 +238,7 @@ def run_aided(tmp_path: Path, pty_pair: PtyPair, running, scenario: Scenario, ki
     ("serial"). Checks that every epoch and sample was used and each output epoch published; returns the
     records, the last status counters and the daemon's configuration (for the replay)."""
     chunk = simulated_run(scenario, seconds)
-    run = running(**scenario_sections(scenario), aiding={"inputs": [kind], **aiding})
+    run = running(**daemon_sections(scenario), aiding={"inputs": [kind], **aiding})
     daemon, subscriber = run.daemon, run.subscriber
     if transport == "zenoh":
         publisher = subscriber.session.declare_publisher(daemon.keys.aid(kind),

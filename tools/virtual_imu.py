@@ -6,6 +6,10 @@ pyserial, the player writes into the master end. Both ends are put in raw mode a
 their own timestamps at ``speed`` × real time, writing every frame that is due in one burst, and
 never blocks for long: a reader that stops reading makes :meth:`FramePlayer.play` stop with a
 timeout error instead of hanging.
+
+An :class:`AidingPlayback` adds an aiding sensor on the same line (serial aiding frames, type 2):
+each epoch goes out ``late_s`` of data after its time stamp, just before the first IMU frame at or
+after that time, as a real aiding sensor's output reaches the IMU's line late.
 """
 from __future__ import annotations
 
@@ -18,7 +22,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
-from sinsalign.protocol.serial_frame import encode_imu
+from sinsalign.protocol.serial_frame import encode_aiding, encode_imu
 
 WRITE_TIMEOUT_S = 2.0
 
@@ -53,11 +57,50 @@ def write_all(fd: int, data: bytes, timeout_s: float = WRITE_TIMEOUT_S) -> None:
 
 
 @dataclass(slots=True)
+class AidingPlayback:
+    """Epochs (N, 1 + values: t in s, then the kind's pinned log columns) of one aiding ``kind`` (odo, gnss,
+    master) to interleave with the IMU frames, each ``late_s`` seconds of data after its time stamp."""
+
+    kind: str
+    epochs: np.ndarray
+    late_s: float = 0.0
+    sent: int = 0
+
+    def due(self, t: float) -> bytes:
+        """The frames of the epochs not sent yet that are due before an IMU frame at time t (s)."""
+        end = int(np.searchsorted(self.epochs[:, 0] + self.late_s, t, side="right"))
+        return self._frames(end)
+
+    def rest(self) -> bytes:
+        """The frames of every epoch not sent yet (after the last IMU frame)."""
+        return self._frames(len(self.epochs))
+
+    def _frames(self, end: int) -> bytes:
+        out = b"".join(encode_aiding(j, float(self.epochs[j, 0]), self.kind, self.epochs[j, 1:])
+                       for j in range(self.sent, end))
+        self.sent = max(self.sent, end)
+        return out
+
+
+def encode_samples(t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int,
+                   aiding: AidingPlayback | None = None) -> bytes:
+    """IMU frames (sequence numbers from ``seq``) of samples t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, each
+    preceded by the aiding frames due before it."""
+    frames = []
+    for i in range(len(t)):
+        if aiding is not None:
+            frames.append(aiding.due(float(t[i])))
+        frames.append(encode_imu(seq + i, float(t[i]), dtheta[i], dv[i]))
+    return b"".join(frames)
+
+
+@dataclass(slots=True)
 class FramePlayer:
     """Encodes samples as IMU frames and writes them to a file descriptor, paced by their time stamps."""
 
     fd: int
     speed: float = 1.0
+    aiding: AidingPlayback | None = None
     seq: int = 0
     frames_written: int = 0
     _origin: tuple[float, float] | None = None   # (data time, wall time) of the first frame
@@ -77,13 +120,15 @@ class FramePlayer:
                 continue
             due_data = t0_data + (time.monotonic() - t0_wall) * self.speed
             end = max(k + 1, int(np.searchsorted(t, due_data, side="right")))
-            write_all(self.fd, b"".join(encode_imu(self.seq + i, float(t[k + i]), dtheta[k + i], dv[k + i])
-                                        for i in range(end - k)))
+            write_all(self.fd, encode_samples(t[k:end], dtheta[k:end], dv[k:end], self.seq, self.aiding))
             self.seq += end - k
             self.frames_written += end - k
             k = end
 
     def play_chunks(self, chunks: Iterable, stop: object = None) -> None:
-        """Play chunks of (t, Δθ, Δv) arrays (simulator chunks or log blocks) back to back, one clock."""
+        """Play chunks of (t, Δθ, Δv) arrays (simulator chunks or log blocks) back to back, one clock; then the
+        aiding epochs still due (those less than ``late_s`` before the end)."""
         for t, dtheta, dv in chunks:
             self.play(t, dtheta, dv, stop)
+        if self.aiding is not None:
+            write_all(self.fd, self.aiding.rest())

@@ -180,3 +180,23 @@ def write_master_log(path: str | Path, epochs: np.ndarray, att_std_deg: float | 
         write_header(f, keys, KINDS["master"].columns)
         write_rows(f, epochs)
     return path
+
+
+def scenario_aiding(scenario: Scenario, seed: int) -> tuple[str, np.ndarray, dict[str, object]] | None:
+    """The scenario's aiding sensor, if it has one: its kind (odo, gnss, master), its epochs (N, 1 + values: t in s,
+    then the kind's pinned log columns) for ``seed``, and the daemon's [aiding] keys that select the mode and state
+    the sensor (lever arm, noise) as its log would."""
+    if scenario.gnss is not None:
+        g = scenario.gnss
+        return "gnss", gnss_epochs(scenario, seed), {"inputs": ["gnss"], "gnss_lever_m": list(g.lever_b),
+                                                     "gnss_vel_std_mps": g.vel_noise_mps,
+                                                     "gnss_pos_std_m": g.pos_noise_m}
+    if scenario.master is not None:
+        m = scenario.master
+        return "master", master_epochs(scenario, seed), {"inputs": ["master"], "master_att_std_deg": m.att_noise_deg,
+                                                         "master_vel_std_mps": m.vel_noise_mps}
+    if scenario.odometer is not None:
+        o = scenario.odometer
+        return "odo", odometer_epochs(scenario, seed), {"inputs": ["odo"], "odo_std_mps": o.noise_mps,
+                                                        "odo_lever_m": list(o.lever_b)}
+    return None

@@ -235,6 +235,13 @@ SCENARIOS["seed002"] = _scenario(
     100.0, 60.0, ((10.0, 10.0), (60.0, 60.0)), random_bias_signs=True, master=MasterSpec())
 
 
+def daemon_sections(scenario: Scenario) -> dict[str, dict]:
+    """The daemon's [site] (degrees, metres), [imu] (Hz) and [sensor] (datasheet) tables for ``scenario``."""
+    return {"site": {"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
+                     "height_m": scenario.site.height_m},
+            "imu": {"rate_hz": scenario.rate_hz}, "sensor": scenario.grade.datasheet()}
+
+
 def get_scenario(name: str) -> Scenario:
     """A scenario by name; a name ending in ``-ideal`` gives the same run without sensor errors."""
     base = name.removesuffix("-ideal")
