@@ -23,14 +23,7 @@ from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 
-from .sim.aiding import (
-    gnss_epochs,
-    master_epochs,
-    odometer_epochs,
-    with_gnss_faults,
-    with_master_faults,
-    with_odometer_faults,
-)
+from .sim.aiding import scenario_aiding, with_faults
 from .sim.imu import simulate
 from .sim.scenarios import Scenario, get_scenario
 
@@ -82,21 +75,17 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     if initial_error_deg is not None:
         phi = np.asarray(initial_error_deg, dtype=float) * DEG
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
-    feed, kind, faults = None, None, aid_faults or {}
-    if scenario.gnss is not None:
-        if gnss_lever_stated:
-            # the antenna's lever arm as its log would state it
-            config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
-        kind, noise, epochs = "gnss", None, with_gnss_faults(gnss_epochs(scenario, seed), **faults)
-    elif scenario.master is not None:
-        kind, noise, epochs = "master", None, with_master_faults(master_epochs(scenario, seed), **faults, seed=seed)
-    elif scenario.odometer is not None:
-        kind, noise = "odo", scenario.odometer.noise_mps or None
-        epochs = with_odometer_faults(odometer_epochs(scenario, seed), **faults, seed=seed)
-    if kind is None:
+    feed, aid = None, scenario_aiding(scenario, seed)
+    if aid is None:
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
                                      initial_q_b_n=initial)
     else:
+        kind, epochs, _ = aid
+        epochs = with_faults(kind, epochs, seed, **(aid_faults or {}))
+        if kind == "gnss" and gnss_lever_stated:
+            # the antenna's lever arm as its log would state it
+            config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
+        noise = (scenario.odometer.noise_mps or None) if kind == "odo" else None
         # the aided pipeline, its readings through the same aiding track as a log's
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {kind: noise},
                                   live)

@@ -200,3 +200,11 @@ def scenario_aiding(scenario: Scenario, seed: int) -> tuple[str, np.ndarray, dic
         return "odo", odometer_epochs(scenario, seed), {"inputs": ["odo"], "odo_std_mps": o.noise_mps,
                                                         "odo_lever_m": list(o.lever_b)}
     return None
+
+
+def with_faults(kind: str, epochs: np.ndarray, seed: int, **faults: object) -> np.ndarray:
+    """Epochs of an aiding ``kind`` with the faults of :func:`with_gnss_faults`, :func:`with_master_faults` or
+    :func:`with_odometer_faults`, whichever is that kind's (keyword arguments; none: the epochs as they are)."""
+    if kind == "gnss":
+        return with_gnss_faults(epochs, **faults)
+    return (with_master_faults if kind == "master" else with_odometer_faults)(epochs, **faults, seed=seed)
