@@ -30,9 +30,12 @@ def samples(seconds: float = SECONDS):
                          chunk_samples=2000))
 
 
-def assert_same_as_replay(received: list[dict], recording: Path, tmp_path: Path, config: Config) -> None:
+def assert_same_as_replay(received: list[dict], recording: Path, tmp_path: Path, config: Config,
+                          aids: dict[str, str] | None = None) -> None:
+    """The daemon's records against the offline replay of its recording (with the aiding logs ``aids``, kind →
+    path): the same epochs and phases and, to the last digits, the same attitudes."""
     out = tmp_path / "replayed.jsonl"
-    replay(recording, out, config, progress=False)
+    replay(recording, out, config, progress=False, aids=aids)
     offline = [json.loads(line) for line in out.read_text().splitlines()]
     assert [m["t"] for m in received] == [r["t"] for r in offline]
     C_live = dcm_from_quat(np.array([m["q"] for m in received]))
