@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..protocol.aiding_log import KINDS
 from ..protocol.counters import Counters
 
 TIME_TOLERANCE_S = 1e-6
@@ -46,17 +47,28 @@ class AidingTrack:
     latency_s : how late the stream's time stamps are (subtracted).
     max_gap_s : two epochs further apart than this are not interpolated across.
     capacity : epochs held at most; further ones are dropped (``overflow``) until the IMU passes some.
+    longitude_column : the value column (0-based) holding a longitude in degrees, interpolated the short way
+        round ±180° (:meth:`for_kind` sets it from the kind's columns).
     """
 
     def __init__(self, width: int, latency_s: float = 0.0, max_gap_s: float = 1.0,
-                 capacity: int = MAX_HELD_EPOCHS) -> None:
+                 capacity: int = MAX_HELD_EPOCHS, longitude_column: int | None = None) -> None:
         self.width = width
         self.latency_s = latency_s
         self.max_gap_s = max_gap_s
         self.capacity = capacity
+        self.longitude_column = longitude_column
         self.counters = AidingCounters()
         self._epochs = np.empty((64, 1 + width))
         self._n = 0
+
+    @classmethod
+    def for_kind(cls, kind: str, latency_s: float = 0.0, max_gap_s: float = 1.0) -> AidingTrack:
+        """The track of a pinned aiding kind (odo, gnss, master): its width, and its longitude interpolated the
+        short way round ±180°."""
+        values = KINDS[kind].columns[1:]
+        return cls(len(values), latency_s, max_gap_s,
+                   longitude_column=values.index("lon_deg") if "lon_deg" in values else None)
 
     def push(self, rows: np.ndarray) -> None:
         """Epochs (N, 1 + width): time stamp (s, the stream's clock) then the values."""
@@ -102,7 +114,13 @@ class AidingTrack:
             t0, t1 = held[k - 1, 0], held[k, 0]
             ok = (t >= t0 - TIME_TOLERANCE_S) & (t <= t1 + TIME_TOLERANCE_S) & (t1 - t0 <= self.max_gap_s)
             f = ((t - t0) / (t1 - t0))[ok, None]
-            out[ok] = held[k[ok] - 1, 1:] + f * (held[k[ok], 1:] - held[k[ok] - 1, 1:])
+            step = held[k[ok], 1:] - held[k[ok] - 1, 1:]
+            lon = self.longitude_column
+            if lon is not None:   # the short way round: 179.99° to -179.99° is 0.02° east
+                step[:, lon] = np.mod(step[:, lon] + 180.0, 360.0) - 180.0
+            out[ok] = held[k[ok] - 1, 1:] + f * step
+            if lon is not None:
+                out[:, lon] = np.mod(out[:, lon] + 180.0, 360.0) - 180.0
         if self._n:
             # a time at a held epoch takes that epoch's values, whatever its neighbours: the newest epoch (live,
             # before the next arrives) and the first after a gap give the same as in a replay

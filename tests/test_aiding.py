@@ -125,3 +125,15 @@ def test_a_track_far_ahead_of_the_imu_stays_bounded_and_counts_what_it_drops():
     assert track.counters.epochs == 160 and track.counters.overflow == 60
     assert track._epochs.shape[0] <= 100
     np.testing.assert_allclose(track.at(t[80]), [1.0, 1.0, 1.0])
+
+
+def test_a_track_interpolates_longitude_the_short_way_round_the_antimeridian():
+    """GIVEN fixes at 179.99° and -179.99° E, THEN a sample half-way lies at ±180°, not on the Greenwich meridian
+    (a plain interpolation puts it 20 000 km away); the other columns interpolate as before."""
+    track = AidingTrack.for_kind("gnss")
+    assert track.width == 6 and track.longitude_column == 1
+    track.push(np.array([[0.0, 30.0, 179.99, 100.0, 1.0, 2.0, 3.0], [1.0, 30.0, -179.99, 200.0, 3.0, 2.0, 1.0]]))
+    middle, quarter = track.values_at(np.array([0.5, 0.75]))
+    assert abs(abs(middle[1]) - 180.0) < 1e-9 and quarter[1] == pytest.approx(-179.995)
+    np.testing.assert_allclose(middle[[0, 2, 3, 4, 5]], [30.0, 150.0, 2.0, 2.0, 2.0])
+    assert AidingTrack.for_kind("master").longitude_column == 8 and AidingTrack.for_kind("odo").longitude_column is None

@@ -33,7 +33,8 @@ def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None,
     mapping = {**(config or {}), "aiding": {"gnss_lever_m": lever_m, **(aiding or {})}}
     pipeline = build_pipeline(config_from_mapping(mapping), scenario.site, scenario.rate_hz,
                               scenario.grade.datasheet(), {"gnss": None})
-    feed = AidingFeed(AidingTrack(6), iter([with_gnss_faults(gnss_epochs(scenario, seed), **(faults or {}))]))
+    epochs = with_gnss_faults(gnss_epochs(scenario, seed), **(faults or {}))
+    feed = AidingFeed(AidingTrack.for_kind("gnss"), iter([epochs]))
     records = process_simulation(pipeline, scenario, seed, feed, piece)
     if counters is not None:
         counters.update(pipeline.aiding_counters())
@@ -211,3 +212,20 @@ def test_a_gnss_log_states_its_lever_arm_and_noise_over_the_configuration(tmp_pa
     config, _, _ = open_aids({"gnss": str(path)}, config_from_mapping({"aiding": {"gnss_lever_m": [9.0, 9.0, 9.0]}}))
     ad = config.aiding
     assert (ad.gnss_lever_m, ad.gnss_vel_std_mps, ad.gnss_pos_std_m) == ((0.5, -1.0, 2.0), 0.05, 3.0)
+
+
+def test_a_flight_across_the_antimeridian_stays_exact_through_both_stages():
+    """GIVEN the exact-sensor flight started 2.3 km west of 180° E (the fixes wrapped into [-180°, 180°) as a
+    receiver gives them), crossing into -180° after the Kalman stage has started, THEN the filter's position and
+    the fixes stay on one circle: it stays exact and accepts every fix."""
+    base = get_scenario("seed004-ideal")
+    site = replace(base.site, lon=179.976 * DEG)
+    scenario = replace(base, site=site, motion=replace(base.motion, start=site), duration_s=40.0)
+    fixes = gnss_epochs(scenario, 1)
+    crossing = fixes[np.flatnonzero(fixes[:, 2] < 0.0)[0], 0]
+    assert 15.0 < crossing < 35.0
+    counters = {}
+    records = run_gnss(scenario, aiding={"gnss_handover_s": 15.0}, counters=counters)
+    t, phi = errors_deg(scenario, records)
+    assert np.abs(phi[t >= 10.0]).max() < 0.001
+    assert counters["gnss_pos_rejected"] == counters["gnss_vel_rejected"] == 0 and counters["gnss_pos_accepted"] > 0

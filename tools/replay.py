@@ -46,8 +46,8 @@ def open_aids(aids: dict[str, str], config: Config
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
         noise[kind] = log.std("vel_std_mps")
-        feeds[kind] = AidingFeed(AidingTrack(len(log.kind.columns) - 1, getattr(config.aiding, f"{kind}_latency_s"),
-                                             config.aiding.max_gap_s), log.blocks())
+        feeds[kind] = AidingFeed(AidingTrack.for_kind(kind, getattr(config.aiding, f"{kind}_latency_s"),
+                                                      config.aiding.max_gap_s), log.blocks())
         stated = {}
         if kind == "gnss":
             stated = {"gnss_vel_std_mps": log.std("vel_std_mps"), "gnss_pos_std_m": log.std("pos_std_m")}

@@ -183,8 +183,9 @@ class GnssSource:
         if self._C_e_n0 is None:
             return np.eye(3)
         elapsed, lat, lon = self._fixes
+        # unwrapped: between fixes on either side of ±180° the position is near it, not half a world away
         return self.C_n_n0_at(np.asarray(elapsed_s), np.interp(elapsed_s, elapsed, lat),
-                            np.interp(elapsed_s, elapsed, lon))
+                            np.interp(elapsed_s, elapsed, np.unwrap(lon)))
 
 
 class GnssVelocitySource(GnssSource):

@@ -29,7 +29,7 @@ from typing import Protocol
 import numpy as np
 
 from .compass import rotation_matrix
-from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, rotvec_from_quat, skew
+from .conventions import DEG, cross, dcm_from_quat, quat_from_dcm, rotvec_from_quat, skew, wrap_pi
 from .earth import earth_rate_n, normal_gravity, position_rate, radii, transport_rate_n
 from .sensor_model import AttitudeSigma, SensorGrade
 
@@ -50,10 +50,19 @@ def enu_to_geodetic_step(d_enu_m: np.ndarray, position: np.ndarray) -> np.ndarra
 
 
 def geodetic_to_enu_step(d_position: np.ndarray, position: np.ndarray) -> np.ndarray:
-    """ENU offset (3,) m of a small (Δlat rad, Δlon rad, Δh m) at ``position``: the inverse of the above."""
+    """ENU offset (3,) m of a small (Δlat rad, Δlon rad, Δh m) at ``position``: the inverse of the above. Δlon
+    is taken the short way round (a fix and a position on either side of ±180° are close)."""
     R_M, R_N = radii(position[0])
     h = position[2]
-    return np.array([d_position[1] * (R_N + h) * np.cos(position[0]), d_position[0] * (R_M + h), d_position[2]])
+    return np.array([wrap_pi(d_position[1]) * (R_N + h) * np.cos(position[0]), d_position[0] * (R_M + h),
+                     d_position[2]])
+
+
+def moved(position: np.ndarray, d_position: np.ndarray) -> np.ndarray:
+    """``position`` (lat rad, lon rad, h m) moved by (Δlat, Δlon, Δh), its longitude kept in [-π, π) like a fix's."""
+    out = position + d_position
+    out[1] = wrap_pi(out[1])
+    return out
 
 
 @dataclass(slots=True)
@@ -178,8 +187,8 @@ class ErrorStateFilter:
         dv_f_n = C_n_n0_mid.T @ self.C_b0_n0 @ dalpha_b0
         g_n = np.array([0.0, 0.0, -normal_gravity(self.position[0], self.position[2])])
         V_new = self.V_n + dv_f_n + (g_n - cross(2.0 * omega_ie + omega_en, self.V_n)) * dt_s
-        self.position = self.position + dt_s * position_rate(0.5 * (self.V_n + V_new), self.position[0],
-                                                             self.position[2])
+        self.position = moved(self.position, dt_s * position_rate(0.5 * (self.V_n + V_new), self.position[0],
+                                                                  self.position[2]))
         self.V_n = V_new
         self.C_n_n0 = self.C_n_n0 @ rotation_matrix(dt_s * omega_in)
         step = rotvec_from_quat(quat_from_dcm(self._C_b_b0.T @ C_b_b0))
@@ -215,7 +224,7 @@ class ErrorStateFilter:
         phi = self.x[PHI]
         self.C_b0_n0 = self.C_n_n0 @ rotation_matrix(phi) @ self.C_n_n0.T @ self.C_b0_n0
         self.V_n = self.V_n - self.x[DV]
-        self.position = self.position - enu_to_geodetic_step(self.x[POS], self.position)
+        self.position = moved(self.position, -enu_to_geodetic_step(self.x[POS], self.position))
         self.x[PHI] = 0.0
         self.x[DV] = 0.0
         self.x[POS] = 0.0

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS
 from sinsalign.protocol.imu_log import write_header, write_rows
-from sinsalign.service.align.conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec
+from sinsalign.service.align.conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec, wrap_pi
 from sinsalign.service.align.earth import radii, transport_rate_n
 
 from .scenarios import Scenario
@@ -115,7 +115,7 @@ def gnss_fixes(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | None 
     R_M, R_N = radii(lat)
     lat_P = lat + offset_n[:, 1] / (R_M + h)
     lon_P = lon + offset_n[:, 0] / ((R_N + h) * np.cos(lat))
-    return np.column_stack((lat_P / DEG, lon_P / DEG, h + offset_n[:, 2], V_P))
+    return np.column_stack((lat_P / DEG, wrap_pi(lon_P) / DEG, h + offset_n[:, 2], V_P))   # as a receiver gives it
 
 
 def gnss_epochs(scenario: Scenario, seed: int) -> np.ndarray:
@@ -168,7 +168,7 @@ def master_epochs(scenario: Scenario, seed: int) -> np.ndarray:
         C_bm_n = dcm_from_quat(quat_from_rotvec(m.att_noise_deg * DEG * rng.standard_normal((len(t), 3)))) @ C_bm_n
     V_n = vehicle.velocity_n(t)[2] + m.vel_noise_mps * rng.standard_normal((len(t), 3))
     lat, lon, h = np.moveaxis(vehicle.position(t), -1, 0)
-    return np.column_stack((t, quat_from_dcm(C_bm_n), V_n, lat / DEG, lon / DEG, h))
+    return np.column_stack((t, quat_from_dcm(C_bm_n), V_n, lat / DEG, wrap_pi(lon) / DEG, h))
 
 
 def write_master_log(path: str | Path, epochs: np.ndarray, att_std_deg: float | None = None,
