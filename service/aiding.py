@@ -49,26 +49,31 @@ class AidingTrack:
     capacity : epochs held at most; further ones are dropped (``overflow``) until the IMU passes some.
     longitude_column : the value column (0-based) holding a longitude in degrees, interpolated the short way
         round ±180° (:meth:`for_kind` sets it from the kind's columns).
+    quaternion_column : the first of four value columns holding a unit quaternion [w, x, y, z], interpolated
+        between the pair's nearer signs (q and −q are one attitude; a master may flip it) and renormalised.
     """
 
     def __init__(self, width: int, latency_s: float = 0.0, max_gap_s: float = 1.0,
-                 capacity: int = MAX_HELD_EPOCHS, longitude_column: int | None = None) -> None:
+                 capacity: int = MAX_HELD_EPOCHS, longitude_column: int | None = None,
+                 quaternion_column: int | None = None) -> None:
         self.width = width
         self.latency_s = latency_s
         self.max_gap_s = max_gap_s
         self.capacity = capacity
         self.longitude_column = longitude_column
+        self.quaternion_column = quaternion_column
         self.counters = AidingCounters()
         self._epochs = np.empty((64, 1 + width))
         self._n = 0
 
     @classmethod
     def for_kind(cls, kind: str, latency_s: float = 0.0, max_gap_s: float = 1.0) -> AidingTrack:
-        """The track of a pinned aiding kind (odo, gnss, master): its width, and its longitude interpolated the
-        short way round ±180°."""
+        """The track of a pinned aiding kind (odo, gnss, master): its width, its longitude interpolated the short
+        way round ±180° and its attitude quaternion as a rotation."""
         values = KINDS[kind].columns[1:]
         return cls(len(values), latency_s, max_gap_s,
-                   longitude_column=values.index("lon_deg") if "lon_deg" in values else None)
+                   longitude_column=values.index("lon_deg") if "lon_deg" in values else None,
+                   quaternion_column=values.index("qw") if "qw" in values else None)
 
     def push(self, rows: np.ndarray) -> None:
         """Epochs (N, 1 + width): time stamp (s, the stream's clock) then the values."""
@@ -114,11 +119,17 @@ class AidingTrack:
             t0, t1 = held[k - 1, 0], held[k, 0]
             ok = (t >= t0 - TIME_TOLERANCE_S) & (t <= t1 + TIME_TOLERANCE_S) & (t1 - t0 <= self.max_gap_s)
             f = ((t - t0) / (t1 - t0))[ok, None]
-            step = held[k[ok], 1:] - held[k[ok] - 1, 1:]
-            lon = self.longitude_column
+            before, after = held[k[ok] - 1, 1:], held[k[ok], 1:].copy()
+            q, lon = self.quaternion_column, self.longitude_column
+            if q is not None:     # the nearer sign: interpolating q towards -q would pass through zero
+                flip = np.einsum("ij,ij->i", before[:, q:q + 4], after[:, q:q + 4]) < 0.0
+                after[flip, q:q + 4] *= -1.0
+            step = after - before
             if lon is not None:   # the short way round: 179.99° to -179.99° is 0.02° east
                 step[:, lon] = np.mod(step[:, lon] + 180.0, 360.0) - 180.0
-            out[ok] = held[k[ok] - 1, 1:] + f * step
+            out[ok] = before + f * step
+            if q is not None:
+                out[ok, q:q + 4] /= np.linalg.norm(out[ok, q:q + 4], axis=1, keepdims=True)
             if lon is not None:
                 out[:, lon] = np.mod(out[:, lon] + 180.0, 360.0) - 180.0
         if self._n:

@@ -137,3 +137,21 @@ def test_a_track_interpolates_longitude_the_short_way_round_the_antimeridian():
     assert abs(abs(middle[1]) - 180.0) < 1e-9 and quarter[1] == pytest.approx(-179.995)
     np.testing.assert_allclose(middle[[0, 2, 3, 4, 5]], [30.0, 150.0, 2.0, 2.0, 2.0])
     assert AidingTrack.for_kind("master").longitude_column == 8 and AidingTrack.for_kind("odo").longitude_column is None
+
+
+def test_a_master_track_interpolates_its_attitude_as_a_rotation_whatever_the_quaternions_sign():
+    """GIVEN master epochs off the IMU grid whose quaternions alternate in sign (q and -q are one attitude), THEN
+    values between them are unit quaternions of the attitude in between, not the component mean of q and -q."""
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment, quat_from_rotvec
+    track = AidingTrack.for_kind("master")
+    assert track.quaternion_column == 0
+    t = np.arange(6) * 0.1 + 0.003
+    angles = 0.2 * t                                                    # a 0.2-rad/s turn about up
+    q = quat_from_rotvec(np.column_stack((np.zeros((6, 2)), angles)))
+    q[1::2] *= -1.0
+    track.push(np.column_stack((t, q, np.ones((6, 3)), np.full((6, 3), 30.0))))
+    at = np.arange(1, 50) * 0.01
+    values = track.values_at(at)
+    assert np.allclose(np.linalg.norm(values[:, :4], axis=1), 1.0)
+    truth = dcm_from_quat(quat_from_rotvec(np.column_stack((np.zeros((49, 2)), 0.2 * at))))
+    assert np.abs(misalignment(dcm_from_quat(values[:, :4]), truth)).max() < 1e-6
