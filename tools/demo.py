@@ -2,9 +2,8 @@
 
 A virtual IMU plays a simulated scenario as serial frames into a pseudo-terminal (with its aiding
 sensor's epochs as serial aiding frames, for a scenario that has one: the daemon then runs that
-aided mode); the daemon
-reads the pty with pyserial, aligns, and publishes over Zenoh (peer mode on loopback, multicast
-scouting off); a watch client in a second Zenoh session shows it live. At the end the attitude
+aided mode); the daemon reads the pty with pyserial, aligns, and publishes over Zenoh (peer mode
+on loopback, multicast scouting off); a watch client in a second Zenoh session shows it live. At the end the attitude
 the watch client received is compared with the simulated truth and the run's physical limit.
 """
 from __future__ import annotations
