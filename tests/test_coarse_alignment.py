@@ -145,3 +145,19 @@ def test_gls_gives_the_same_bits_one_sample_at_a_time_as_in_one_chunk():
     assert all(np.isnan(r.trace_P) for r in got + expected)        # a least-squares fit has no OPREQ P
     comparable = [[replace(r, trace_P=0.0) for r in records] for records in (got, expected)]
     assert len(expected) == 20 and comparable[0] == comparable[1]
+
+
+@pytest.mark.parametrize("solver", ["opreq", "request", "qmethod", "centred", "gls"])
+def test_a_datasheet_of_zeros_does_not_break_any_solver(solver):
+    """GIVEN a configuration that states an ideal sensor (every datasheet figure 0, no disturbance; a log may say
+    the same), THEN the figures are floored at 1e-12 SI and every solver keeps giving finite attitudes (before:
+    OPREQ's gain and the GLS weights were 0/0 and the eigen-solve raised)."""
+    from sinsalign.service.pipeline import AlignmentPipeline
+    from sinsalign.tools.sim.imu import simulate
+    scenario = get_scenario("seed000-swing")
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, 200.0, 10.0, 1, chunk_samples=4000)
+    zeros = {k: 0.0 for k in ("gyro_bias_deg_h", "gyro_arw_deg_rth", "acc_bias_ug", "acc_vrw_ug_rthz")}
+    config = config_from_mapping({"alignment": {"solver": solver, "disturbance_velocity_mps": 0.0}, "sensor": zeros,
+                                  **COARSE_ONLY})
+    records = AlignmentPipeline(config, scenario.site, 200.0).process(chunk.t, chunk.dtheta, chunk.dv)
+    assert len(records) == 10 and all(np.isfinite(r.q).all() and np.isfinite(r.heading_sigma_deg) for r in records)

@@ -17,6 +17,8 @@ from .earth import OMEGA_IE
 ESTIMATOR_EFFICIENCY = 2.0
 """Variance of the recursive OPREQ heading over the least-squares floor, measured by Monte Carlo
 (``sinsalign eval``: seed-000 swing and turntable scenarios, ≈1.4² at 100-300 s)."""
+SMALLEST_FIGURE = 1e-12
+"""Floor of every datasheet figure in SI units (the simulator's ideal sensor states the same)."""
 SIGMA_UNKNOWN_DEG = float(360.0 / np.sqrt(12.0))
 """1-sigma of an angle that is uniformly unknown over a full turn (103.9°): the cap of every σ."""
 
@@ -39,9 +41,11 @@ class SensorGrade:
     @classmethod
     def from_datasheet(cls, gyro_bias_deg_h: float, gyro_arw_deg_rth: float, acc_bias_ug: float,
                        acc_vrw_ug_rthz: float) -> SensorGrade:
-        """From the units of the IMU log's comment keys: °/h, °/√h, µg, µg/√Hz."""
-        return cls(gyro_bias_deg_h * DH_TO_RS, gyro_arw_deg_rth * DRH_TO_RRS,
-                   acc_bias_ug * UG_TO_MS2, acc_vrw_ug_rthz * UG_TO_MS2)
+        """From the units of the IMU log's comment keys: °/h, °/√h, µg, µg/√Hz. A figure of 0 (a log may state an
+        ideal sensor) is taken as :data:`SMALLEST_FIGURE`: the estimators divide by these."""
+        figures = (gyro_bias_deg_h * DH_TO_RS, gyro_arw_deg_rth * DRH_TO_RRS, acc_bias_ug * UG_TO_MS2,
+                   acc_vrw_ug_rthz * UG_TO_MS2)
+        return cls(*(max(f, SMALLEST_FIGURE) for f in figures))
 
     def datasheet(self) -> dict[str, float]:
         """The figures in the IMU log's comment-key units (°/h, °/√h, µg, µg/√Hz)."""
