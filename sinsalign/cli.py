@@ -120,14 +120,24 @@ def _aided_table(name: str, seeds: range, out: Path) -> bool:
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
-    from sinsalign.tools.evaluate import fine_table, monte_carlo, plot_fine, plot_heading, scenario_table, solver_table
-    seeds = range(args.first_seed, args.first_seed + args.seeds)
+    from sinsalign.tools.evaluate import (
+        fine_table,
+        monte_carlo,
+        plot_fine,
+        plot_heading,
+        scenario_table,
+        seed_set_table,
+        solver_table,
+    )
+    seeds = range(args.first_seed, args.first_seed + args.seeds * args.seed_sets)
     out = Path(args.out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if _aided_table(args.scenario, seeds, out):
         return 0
     runs = monte_carlo(args.scenario, seeds, _overrides(args))
     text = scenario_table(args.scenario, runs)
+    if args.seed_sets > 1:
+        text += "\n\n" + seed_set_table(args.scenario, runs, args.seeds)
     others = None
     if args.fine:
         table, fine_runs = fine_table(args.scenario, seeds)
@@ -391,6 +401,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty)")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
     p.add_argument("--first-seed", type=int, default=0)
+    p.add_argument("--seed-sets", type=int, default=1, metavar="K",
+                   help="run K disjoint sets of --seeds seeds and add a table of the last window per set (how much a "
+                   "20-seed figure moves with the seeds; issue 3's figures: --seeds 20 --seed-sets 5)")
     p.add_argument("--solvers", action="store_true", help="also compare OPREQ, q-method and REQUEST gains")
     p.add_argument("--fine", action="store_true", help="also run seed 001's comparison: OPREQ only, compass alone "
                    "from 1.5°, OPREQ → compass, each with and without stored data; table and plot")

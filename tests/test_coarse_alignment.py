@@ -161,3 +161,11 @@ def test_a_datasheet_of_zeros_does_not_break_any_solver(solver):
                                   **COARSE_ONLY})
     records = AlignmentPipeline(config, scenario.site, 200.0).process(chunk.t, chunk.dtheta, chunk.dv)
     assert len(records) == 10 and all(np.isfinite(r.q).all() and np.isfinite(r.heading_sigma_deg) for r in records)
+
+
+def test_the_seed_set_table_reports_each_set_and_the_pool(swing_runs):
+    from sinsalign.tools.evaluate import seed_set_table
+    rows = [line for line in seed_set_table("seed000-swing", swing_runs, 10).splitlines() if line.startswith("| ")]
+    assert [r.split(" | ")[0] for r in rows[1:]] == ["| 0–9", "| 10–19", "| all 20"]
+    pooled, first = window_stats(swing_runs, (101, 200)), window_stats(swing_runs[:10], (101, 200))
+    assert f"{pooled.heading_seed_std:.4f}" in rows[-1] and f"{first.heading_inwindow_std:.5f}" in rows[1]

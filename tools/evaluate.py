@@ -217,6 +217,22 @@ def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
     return "\n".join(lines)
 
 
+def seed_set_table(name: str, runs: Sequence[RunResult], set_size: int) -> str:
+    """Markdown table of the scenario's last window per disjoint set of ``set_size`` seeds, then all seeds
+    pooled: how much a figure over 20 seeds moves with the set of seeds."""
+    window = get_scenario(name).eval_windows_s[-1]
+    lines = [f"**{name}, per set of {set_size} seeds** (window {window[0]:g}–{window[1]:g} s; heading error − "
+             "limit, °)", "", "| seeds | mean | seed STD | in-window STD | median settling (s) |",
+             "|---|---|---|---|---|"]
+    sets = [(f"{runs[k].seed}–{runs[min(k + set_size, len(runs)) - 1].seed}", runs[k:k + set_size])
+            for k in range(0, len(runs), set_size)]
+    for label, group in [*sets, (f"all {len(runs)}", runs)]:
+        w = window_stats(group, window)
+        lines.append(f"| {label} | {w.heading_mean:+.4f} | {w.heading_seed_std:.4f} | {w.heading_inwindow_std:.5f} | "
+                     f"{np.median([settling_time_s(r) for r in group]):.1f} |")
+    return "\n".join(lines)
+
+
 SOLVER_VARIANTS = (("OPREQ", {"solver": "opreq"}), ("q-method (OBA)", {"solver": "qmethod"}),
                    ("REQUEST ρ=0.1", {"solver": "request", "request_rho": 0.1}),
                    ("REQUEST ρ=0.01", {"solver": "request", "request_rho": 0.01}),
