@@ -47,12 +47,14 @@ class FineConfig:
     """Compass fine alignment (seed 001): hand-over, gain schedule, stored-data passes.
 
     The schedule gives loop bandwidths σ (rad/s) at loop times (s since the hand-over), geometric
-    in between; azimuth σ 0 = levelling only. Defaults suit navigation-grade sensors.
+    in between; azimuth σ 0 = levelling only. Defaults suit navigation-grade sensors. A "sigma"
+    hand-over waits at least ``handover_min_s`` of coarse alignment whatever the σ.
     """
 
     enabled: bool = True
     handover: str = "sigma"
     handover_sigma_deg: float = 0.05
+    handover_min_s: float = 10.0
     handover_time_s: float = 60.0
     handover_schedule_s: float = 31.0
     control_interval_s: float = 0.1
@@ -259,6 +261,7 @@ def _check(config: Config) -> Config:
         ("output.period_s", o.period_s > 0.0, "must be > 0"),
         ("fine.handover_sigma_deg", f.handover_sigma_deg > 0.0, "must be > 0"),
         ("fine.handover_time_s", f.handover_time_s >= 0.0, "must be ≥ 0"),
+        ("fine.handover_min_s", f.handover_min_s >= 0.0, "must be ≥ 0"),
         ("fine.handover_schedule_s", f.handover_schedule_s >= 0.0, "must be ≥ 0"),
         ("fine.control_interval_s", f.control_interval_s > 0.0, "must be > 0"),
         ("fine.stored_data_s", f.stored_data_s >= 0.0, "must be ≥ 0 (0 turns the stored-data passes off)"),

@@ -296,7 +296,9 @@ class AlignmentPipeline:
         f = self.config.fine
         if f.handover == "time":
             return elapsed_s >= f.handover_time_s
-        if self.coarse.solver.n_obs == 0:
+        if self.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s:
+            # a datasheet that claims far too little noise would hand over at the first observation, before the
+            # heading is known at all, and the loops cannot pull in a large error
             return False
         # the noise part only: the bias floor stays whatever the stage, and above the threshold
         # for a poor gyro it would keep the loops from ever starting

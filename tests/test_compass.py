@@ -163,3 +163,20 @@ def test_the_store_is_bounded_by_its_configuration():
     assert buffer.dalpha.nbytes + buffer.dt_s.nbytes == 600 * 4 * 8
     with pytest.raises(OverflowError):
         buffer.append(np.zeros(3), 0.05)
+
+
+def test_a_datasheet_claiming_an_ideal_sensor_cannot_hand_over_before_the_heading_is_known():
+    """GIVEN noisy seed-001 data but a datasheet of zeros (σ ≈ 0 from the first observation), THEN the loops start
+    no earlier than fine.handover_min_s (10 s), from a coarse heading within a few degrees, and pull it in to the
+    limit (without the guard they started at 0.1 s and stayed 250° off)."""
+    from sinsalign.service.align.conventions import dcm_from_quat, misalignment
+    from sinsalign.tools.evaluate import run_limit_deg
+    scenario = get_scenario("seed001-swing").for_seed(1)
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, 200.0, 120.0, 1, chunk_samples=10**6)
+    zeros = {k: 0.0 for k in ("gyro_bias_deg_h", "gyro_arw_deg_rth", "acc_bias_ug", "acc_vrw_ug_rthz")}
+    records = AlignmentPipeline(config_from_mapping({"sensor": zeros}), scenario.site, 200.0).process(
+        chunk.t, chunk.dtheta, chunk.dv)
+    first_fine = next(r.t for r in records if r.phase != "coarse")
+    assert first_fine == pytest.approx(11.0)                      # the first record after the 10-s hand-over
+    phi = misalignment(dcm_from_quat(np.array(records[-1].q)), scenario.motion.attitude(np.array([120.0]))[0]) / DEG
+    assert abs(phi[2] - run_limit_deg(scenario, chunk.t)[2]) < 0.05
