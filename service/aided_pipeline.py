@@ -8,6 +8,8 @@ bit-identity of stream and replay are the base class's.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
 from .align.coarse import InertialCoarseAlignment
@@ -32,11 +34,6 @@ class VelocityAidedPipeline(KalmanStagePipeline):
     aid_width = 3
     checks_translation = False
 
-    def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
-                 live: bool = False, odo_std_mps: float | None = None) -> None:
-        self.odo_std_mps = config.aiding.odo_std_mps if odo_std_mps is None else odo_std_mps
-        super().__init__(config, site, rate_hz, datasheet, live)
-
     def _make_coarse(self) -> InertialCoarseAlignment:
         a, ad = self.config.alignment, self.config.aiding
         priors = {"acc_bias_sigma_ms2": self.grade.acc_bias_ms2, "odo_scale_sigma": ad.odo_scale_sigma,
@@ -51,7 +48,7 @@ class VelocityAidedPipeline(KalmanStagePipeline):
         if not self.config.fine.enabled:
             return None
         ad = self.config.aiding
-        odometer = BodyVelocity(self.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
+        odometer = BodyVelocity(ad.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
         return ErrorStateFilter(self.grade, [odometer], ad.gate_chi2)
 
     def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
@@ -89,7 +86,7 @@ class VelocityAidedPipeline(KalmanStagePipeline):
             extra = [(result.nuisance[k], result.nuisance_sigma[k]) for k in ("odo_scale", "odo_lever")
                      if known[k] and k in result.nuisance]
             self.fine.start(C_b_n, C_b_b0, C_b_n @ aid, source.position, solution.level_sigma_deg * DEG,
-                            solution.heading_sigma_deg * DEG, HANDOVER_VELOCITY_SIGMA_FACTOR * self.odo_std_mps,
+                            solution.heading_sigma_deg * DEG, HANDOVER_VELOCITY_SIGMA_FACTOR * odometer.std_mps,
                             extra={"odo": tuple(np.concatenate(p) for p in zip(*extra, strict=True))} if extra
                             else None)
 
@@ -97,12 +94,8 @@ class VelocityAidedPipeline(KalmanStagePipeline):
         """What the estimators made of the aiding: observations without it, multistage pairs left out as
         outliers, and the Kalman stage's accepted and gated-out odometer readings."""
         result = self.coarse.source.result
-        counters = {"odo_unaided_observations": self.coarse.unaided_observations,
-                    "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum())}
-        if self.fine is not None:
-            c = self.fine.counters["odo"]
-            counters.update(odo_accepted=c.accepted, odo_rejected=c.rejected)
-        return counters
+        return {"odo_unaided_observations": self.coarse.unaided_observations,
+                "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum()), **self.filter_counters()}
 
 
 AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline,
@@ -111,14 +104,11 @@ AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAided
 
 
 def build_pipeline(config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
-                   aids: dict[str, float | None] | None = None, live: bool = False) -> AlignmentPipeline:
-    """The pipeline of the mode the aids select; ``aids`` maps each kind to its noise σ if known (log key)."""
-    kinds = frozenset(aids or {})
+                   aids: Iterable[str] = (), live: bool = False) -> AlignmentPipeline:
+    """The pipeline of the mode the aiding kinds ``aids`` select. What an aiding log states of its sensor (noise,
+    lever arm) belongs in ``config.aiding`` (the replay puts it there)."""
+    kinds = frozenset(aids)
     if kinds not in AIDED_MODES:
         known = ", ".join(sorted("+".join(sorted(k)) or "(none)" for k in AIDED_MODES))
         raise ConfigError(f"aids {', '.join(sorted(kinds))}: no aided mode for this combination yet (known: {known})")
-    if not kinds:
-        return AlignmentPipeline(config, site, rate_hz, datasheet, live)
-    if kinds in ({"gnss"}, {"master"}):
-        return AIDED_MODES[kinds](config, site, rate_hz, datasheet, live)
-    return VelocityAidedPipeline(config, site, rate_hz, datasheet, live, (aids or {}).get("odo"))
+    return AIDED_MODES[kinds](config, site, rate_hz, datasheet, live)

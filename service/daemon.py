@@ -117,7 +117,7 @@ class Daemon:
 
     def _new_pipeline(self) -> AlignmentPipeline:
         return build_pipeline(self.config, self.site, self.config.imu.rate_hz,
-                              aids={kind: None for kind in self.aid_kinds}, live=True)
+                              aids=self.aid_kinds, live=True)
 
     # ---- inputs -------------------------------------------------------------------------
     def _aid_callback(self, kind: str):

@@ -114,10 +114,6 @@ class GnssAidedPipeline(GyroRateAidPipeline):
         """What the estimators made of the fixes: coarse observations without one, coarse pairs screened
         out (glitches) and screens reopened after a run of rejections, and the Kalman stage's accepted
         and gated-out velocity and position fixes."""
-        counters = {"gnss_unaided_observations": self.coarse.unaided_observations,
-                    "gnss_coarse_rejected": self.coarse.solver.rejected,
-                    "gnss_coarse_reopened": self.coarse.solver.reopened}
-        if self.fine is not None:
-            for name, c in self.fine.counters.items():
-                counters |= {f"{name}_accepted": c.accepted, f"{name}_rejected": c.rejected}
-        return counters
+        return {"gnss_unaided_observations": self.coarse.unaided_observations,
+                "gnss_coarse_rejected": self.coarse.solver.rejected,
+                "gnss_coarse_reopened": self.coarse.solver.reopened, **self.filter_counters()}

@@ -38,6 +38,14 @@ class KalmanStagePipeline(AlignmentPipeline):
                 self.fine.update(name, value)
         return True
 
+    def filter_counters(self) -> dict[str, int]:
+        """Each measurement's updates the filter accepted and its gate turned away (``<name>_accepted``,
+        ``<name>_rejected``); none before the filter exists."""
+        if self.fine is None:
+            return {}
+        return {f"{name}_{what}": getattr(c, what) for name, c in self.fine.counters.items()
+                for what in ("accepted", "rejected")}
+
     def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0, coarse: InertialCoarseAlignment) -> ResultRecord:
         if self.fine is None or not self.fine.active:
             return super()._stage_record(t_epoch, t_sample, q_b_b0, coarse)

@@ -229,8 +229,4 @@ class TransferPipeline(GyroRateAidPipeline):
 
     def aiding_counters(self) -> dict[str, int]:
         """Phase-1 epochs without the master, and phase 2's accepted and gated-out velocity and attitude epochs."""
-        counters = {"master_unaided_observations": self.coarse.unaided_observations}
-        if self.fine is not None:
-            for name, c in self.fine.counters.items():
-                counters |= {f"{name}_accepted": c.accepted, f"{name}_rejected": c.rejected}
-        return counters
+        return {"master_unaided_observations": self.coarse.unaided_observations, **self.filter_counters()}

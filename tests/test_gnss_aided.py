@@ -32,7 +32,7 @@ def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None,
     lever_m = list(scenario.gnss.lever_b) if lever else [0.0, 0.0, 0.0]
     mapping = {**(config or {}), "aiding": {"gnss_lever_m": lever_m, **(aiding or {})}}
     pipeline = build_pipeline(config_from_mapping(mapping), scenario.site, scenario.rate_hz,
-                              scenario.grade.datasheet(), {"gnss": None})
+                              scenario.grade.datasheet(), ["gnss"])
     epochs = with_gnss_faults(gnss_epochs(scenario, seed), **(faults or {}))
     feed = AidingFeed(AidingTrack.for_kind("gnss"), iter([epochs]))
     records = process_simulation(pipeline, scenario, seed, feed, piece)
@@ -209,7 +209,7 @@ def test_a_gnss_log_states_its_lever_arm_and_noise_over_the_configuration(tmp_pa
     from sinsalign.tools.sim.aiding import write_gnss_log
     scenario = get_scenario("seed004")
     path = write_gnss_log(tmp_path / "gnss.csv", gnss_epochs(scenario, 1)[:10], np.array([0.5, -1.0, 2.0]), 0.05, 3.0)
-    config, _, _ = open_aids({"gnss": str(path)}, config_from_mapping({"aiding": {"gnss_lever_m": [9.0, 9.0, 9.0]}}))
+    config, _ = open_aids({"gnss": str(path)}, config_from_mapping({"aiding": {"gnss_lever_m": [9.0, 9.0, 9.0]}}))
     ad = config.aiding
     assert (ad.gnss_lever_m, ad.gnss_vel_std_mps, ad.gnss_pos_std_m) == ((0.5, -1.0, 2.0), 0.05, 3.0)
 

@@ -28,7 +28,7 @@ def run_transfer(scenario, seed=1, overrides=None, faults=None, piece=None):
     ``faults`` of :func:`with_master_faults`, the stream fed ``piece`` samples at a time)."""
     scenario = scenario.for_seed(seed)
     config = config_from_mapping(overrides or {})
-    pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"master": None})
+    pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["master"])
     epochs = with_master_faults(master_epochs(scenario, seed), **(faults or {}), seed=seed)
     feed = AidingFeed(AidingTrack(10, config.aiding.master_latency_s, config.aiding.max_gap_s), iter([epochs]))
     records = process_simulation(pipeline, scenario, seed, feed, piece)

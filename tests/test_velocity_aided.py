@@ -37,7 +37,7 @@ def test_noise_free_multistage_is_exact_at_80_mps_where_the_traditional_model_is
 
 def run_pipeline(scenario, config, seed=1):
     """The velocity-aided pipeline over a simulated seed: (pipeline, aiding feed, records)."""
-    pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"odo": 0.03})
+    pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["odo"])
     feed = AidingFeed(AidingTrack(3), iter([odometer_epochs(scenario, seed)]))
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
@@ -99,7 +99,7 @@ def test_a_stream_in_small_pieces_gives_the_same_bits_as_one_chunk():
                           chunk_samples=10**6))
 
     def run(piece: int):
-        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"odo": 0.03})
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["odo"])
         feed = AidingFeed(AidingTrack(3), iter([epochs]))
         records = []
         for k in range(0, len(chunk.t), piece):
@@ -119,8 +119,8 @@ def test_aided_configuration_is_checked_and_modes_are_selected_by_the_aids():
     with pytest.raises(ConfigError, match=r"aiding\.levels"):
         config_from_mapping({"aiding": {"levels": 0}})
     with pytest.raises(ConfigError, match="no aided mode"):
-        build_pipeline(config_from_mapping({}), site, 100.0, aids={"lidar": None})
-    assert build_pipeline(config_from_mapping({}), site, 100.0, aids={"odo": None}).aid_width == 3
+        build_pipeline(config_from_mapping({}), site, 100.0, aids=["lidar"])
+    assert build_pipeline(config_from_mapping({}), site, 100.0, aids=["odo"]).aid_width == 3
     assert build_pipeline(config_from_mapping({}), site, 100.0).aid_width == 0
 
 
@@ -145,7 +145,7 @@ def test_odometer_scale_factor_and_lever_arm_are_fitted_in_the_window_and_carrie
     assert pipeline_run.counters["odo_rejected"] < 20
     # the estimates themselves, from a pipeline run to 300 s
     short = replace(scenario, duration_s=300.0).for_seed(3)
-    pipeline = build_pipeline(config, short.site, short.rate_hz, short.grade.datasheet(), {"odo": 0.03})
+    pipeline = build_pipeline(config, short.site, short.rate_hz, short.grade.datasheet(), ["odo"])
     feed = AidingFeed(AidingTrack(3), iter([odometer_epochs(short, 3)]))
     for chunk in simulate(short.motion, short.site, short.errors, short.rate_hz, short.duration_s, 3):
         pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.values_at(chunk.t))

@@ -86,7 +86,7 @@ def bench_aided_latency(speed_mps: int = 80, seconds: float = 180.0) -> dict[str
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1,
                         chunk_samples=round(seconds * scenario.rate_hz))
     epochs = odometer_epochs(scenario, 1)
-    pipeline = build_pipeline(Config(), scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {"odo": 0.03},
+    pipeline = build_pipeline(Config(), scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["odo"],
                               live=True)
     track = AidingTrack(3)
     n = len(chunk.t)

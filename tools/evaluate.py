@@ -50,6 +50,11 @@ class RunResult:
     """Transfer alignment: the final mounting estimate's error (3,) deg, in the master's axes."""
 
 
+def nearest_epoch(runs: Sequence[RunResult], t_s: float) -> int:
+    """Index of the output epoch nearest ``t_s`` (s) in the runs (they share their epochs)."""
+    return int(np.argmin(np.abs(runs[0].t - t_s)))
+
+
 def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
     """φ limit (deg) of a run: its body-axis biases rotated into n with the mean attitude over t."""
     C_mean = scenario.motion.attitude(t).mean(axis=0)
@@ -85,10 +90,11 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
         if kind == "gnss" and gnss_lever_stated:
             # the antenna's lever arm as its log would state it
             config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
-        noise = (scenario.odometer.noise_mps or None) if kind == "odo" else None
+        if kind == "odo" and scenario.odometer.noise_mps:
+            # the odometer's noise as its log would state it
+            config = replace(config, aiding=replace(config.aiding, odo_std_mps=scenario.odometer.noise_mps))
         # the aided pipeline, its readings through the same aiding track as a log's
-        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), {kind: noise},
-                                  live)
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), [kind], live)
         track = AidingTrack.for_kind(kind, getattr(config.aiding, f"{kind}_latency_s"), config.aiding.max_gap_s)
         feed = AidingFeed(track, iter([epochs]))
     records = []

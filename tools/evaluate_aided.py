@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .evaluate import RunResult, monte_carlo
+from .evaluate import RunResult, monte_carlo, nearest_epoch
 
 SPEEDS_MPS = (20, 60, 80)
 COARSE_AT_S = 120.0
@@ -35,7 +35,7 @@ class HeadingStats:
 
 def stats_at(runs: Sequence[RunResult], t_s: float) -> HeadingStats:
     """Heading and level error statistics over the runs at the output epoch nearest ``t_s`` (s)."""
-    k = int(np.argmin(np.abs(runs[0].t - t_s)))
+    k = nearest_epoch(runs, t_s)
     phi = np.array([r.phi_deg[k] for r in runs])
     heading = phi[:, 2]
     return HeadingStats(float(np.abs(heading).mean()), float(heading.mean()), float(heading.std()),

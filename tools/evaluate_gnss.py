@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from sinsalign.service.config import ConfigError
 
-from .evaluate import RunResult, monte_carlo
+from .evaluate import RunResult, monte_carlo, nearest_epoch
 from .evaluate_aided import HeadingStats, fine_honesty, stats_at
 from .sim.aiding import GnssGlitch
 
@@ -75,7 +75,7 @@ def _mean_sigma(runs: Sequence[RunResult], t_s: float) -> str:
     """The reported heading σ (deg) at the epoch nearest ``t_s``, mean over the runs (– beyond them)."""
     if t_s > runs[0].t[-1] + 1e-9:
         return "–"
-    k = int(np.argmin(np.abs(runs[0].t - t_s)))
+    k = nearest_epoch(runs, t_s)
     return f"{np.mean([r.heading_sigma_deg[k] for r in runs]):.5f}"
 
 

@@ -21,7 +21,15 @@ from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.transfer_ekf import EkfSettings, run_transfer_ekf
 from sinsalign.service.config import Config, config_from_mapping
 
-from .evaluate import COARSE_ONLY, RunResult, monte_carlo, run_limit_deg, run_once, run_parallel
+from .evaluate import (
+    COARSE_ONLY,
+    RunResult,
+    monte_carlo,
+    nearest_epoch,
+    run_limit_deg,
+    run_once,
+    run_parallel,
+)
 from .evaluate_aided import fine_honesty
 from .evaluate_gnss import plot_heading_runs, summed_counters
 from .sim.aiding import master_epochs
@@ -47,7 +55,7 @@ VARIANTS: tuple[tuple[str, dict, dict | None], ...] = (
 
 def rms_at(runs: Sequence[RunResult], t_s: float) -> np.ndarray:
     """RMS over the runs of φ (3,) deg at the epoch nearest ``t_s``."""
-    k = int(np.argmin(np.abs(runs[0].t - t_s)))
+    k = nearest_epoch(runs, t_s)
     return np.sqrt(np.mean([r.phi_deg[k] ** 2 for r in runs], axis=0))
 
 
@@ -158,7 +166,7 @@ def comparison_runs(method: str, mount_deg: Sequence[float], seeds: Sequence[int
 def within_2sigma(runs: Sequence[RunResult], t_s: float) -> float:
     """Fraction of the runs' φ components at the epoch nearest ``t_s`` within twice their σ (level σ for φ_E,
     φ_N, heading σ for φ_U)."""
-    k = int(np.argmin(np.abs(runs[0].t - t_s)))
+    k = nearest_epoch(runs, t_s)
     inside = [np.abs(r.phi_deg[k]) <= 2.0 * np.array([r.level_sigma_deg[k]] * 2 + [r.heading_sigma_deg[k]])
               for r in runs]
     return float(np.mean(inside))
@@ -174,7 +182,7 @@ def phase1_comparison(seeds: Sequence[int], progress: bool = True) -> str:
              "|---|---|" + "---|" * len(COMPARISON_AT_S) + "---|---|"]
     for label, method, mount in COMPARISON_ROWS:
         runs = comparison_runs(method, mount, seeds, progress, f"{label} {mount}")
-        k = int(np.argmin(np.abs(runs[0].t - 10.0)))
+        k = nearest_epoch(runs, 10.0)
         worst = max(float(np.abs(r.phi_deg[k]).max()) for r in runs)
         cells = " | ".join(_axes(rms_at(runs, s)) for s in COMPARISON_AT_S)
         lines.append(f"| {label} | {'/'.join(f'{v:g}' for v in mount)} | {cells} | {worst:.4f} | "

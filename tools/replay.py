@@ -37,26 +37,25 @@ def parse_aids(specs: list[str] | None) -> dict[str, str]:
     return aids
 
 
-def open_aids(aids: dict[str, str], config: Config
-              ) -> tuple[Config, dict[str, float | None], dict[str, AidingFeed]]:
-    """Each aiding log opened as a feed (latency, gaps from the configuration) and its noise σ key, if any;
-    the configuration with what the logs state of themselves (a GNSS or master log's lever arm and
-    noise)."""
-    noise, feeds = {}, {}
+def open_aids(aids: dict[str, str], config: Config) -> tuple[Config, dict[str, AidingFeed]]:
+    """Each aiding log opened as a feed (latency, gaps from the configuration); the configuration with what the
+    logs state of themselves (their noise, a GNSS or master log's lever arm)."""
+    feeds = {}
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
-        noise[kind] = log.std("vel_std_mps")
         feeds[kind] = AidingFeed(AidingTrack.for_kind(kind, getattr(config.aiding, f"{kind}_latency_s"),
                                                       config.aiding.max_gap_s), log.blocks())
         stated = {}
-        if kind == "gnss":
+        if kind == "odo":
+            stated = {"odo_std_mps": log.std("vel_std_mps")}
+        elif kind == "gnss":
             stated = {"gnss_vel_std_mps": log.std("vel_std_mps"), "gnss_pos_std_m": log.std("pos_std_m")}
         elif kind == "master":
             stated = {"master_att_std_deg": log.std("att_std_deg"), "master_vel_std_mps": log.std("vel_std_mps")}
         if kind in ("gnss", "master") and any(key in log.header.values for key in LEVER_KEYS):
             stated[f"{kind}_lever_m"] = tuple(float(v) for v in log.lever_arm_m)
         config = replace(config, aiding=replace(config.aiding, **{k: v for k, v in stated.items() if v}))
-    return config, noise, feeds
+    return config, feeds
 
 
 def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress: bool | None = None,
@@ -69,9 +68,9 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     """
     log = open_imu_log(imu_csv)
     h = log.header
-    config, noise, feeds = open_aids(aids or {}, config)
+    config, feeds = open_aids(aids or {}, config)
     pipeline = build_pipeline(config, Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m), h.rate_hz, h.datasheet(),
-                              noise)
+                              feeds)
     aid_feed = next(iter(feeds.values()), None)   # one aided mode at a time: build_pipeline refused the rest
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress

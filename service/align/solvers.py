@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .conventions import cross, dcm_from_quat, quat_normalize
+from .conventions import dcm_from_quat, quat_normalize
 
 if TYPE_CHECKING:
     from .sensor_model import SensorGrade
@@ -36,17 +36,21 @@ if TYPE_CHECKING:
 SOLVERS = ("opreq", "request", "qmethod", "centred", "gls")
 
 
+def davenport(B: np.ndarray) -> np.ndarray:
+    """Davenport matrices K (..., 4, 4) of attitude profile matrices B (..., 3, 3) = Σ w b rᵀ."""
+    sigma = np.einsum("...ii->...", B)
+    K = np.empty((*B.shape[:-2], 4, 4))
+    K[..., :3, :3] = B + np.swapaxes(B, -1, -2) - sigma[..., None, None] * np.eye(3)
+    z = np.stack((B[..., 1, 2] - B[..., 2, 1], B[..., 2, 0] - B[..., 0, 2], B[..., 0, 1] - B[..., 1, 0]), axis=-1)
+    K[..., :3, 3] = z
+    K[..., 3, :3] = z
+    K[..., 3, 3] = sigma
+    return K
+
+
 def delta_K(b: np.ndarray, r: np.ndarray) -> np.ndarray:
     """Davenport matrices δK (M, 4, 4) of unit vector pairs b, r (M, 3), unit weight each."""
-    B = b[:, :, None] * r[:, None, :]
-    sigma = np.einsum("mii->m", B)
-    K = np.empty((len(b), 4, 4))
-    K[:, :3, :3] = B + np.swapaxes(B, 1, 2) - sigma[:, None, None] * np.eye(3)
-    z = cross(b, r)
-    K[:, :3, 3] = z
-    K[:, 3, :3] = z
-    K[:, 3, 3] = sigma
-    return K
+    return davenport(b[:, :, None] * r[:, None, :])
 
 
 def request_noise(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> np.ndarray:
@@ -185,6 +189,7 @@ class CentredWahba:
         self.S_br = np.zeros((3, 3))
         self.S_rr = np.zeros((3, 3))   # Σ w r rᵀ and Σ w |b|²: the fit's residual and information (covariance)
         self.S_bb = 0.0
+        self._G: np.ndarray | None = None   # (Σ w z zᵀ)⁺ of the sums as they are; None: not since they changed
         self.n_obs = 0
         self.rejected = 0
         self.reopened = 0
@@ -222,6 +227,7 @@ class CentredWahba:
             self.S_br = self.S_br + outer[k]
             self.S_rr = self.S_rr + w * np.outer(r, r)
             self.S_bb = self.S_bb + w * float(b @ b)
+            self._G = None
             self.n_obs += 1
         self.rho = 1.0 / max(self.n_obs, 1)
 
@@ -236,8 +242,12 @@ class CentredWahba:
         return solver
 
     def _nuisance_inverse(self) -> np.ndarray:
-        """(Σ w z zᵀ)⁺: zero before any weight (pseudo-inverse: a drift regressor that has not varied yet)."""
-        return np.linalg.pinv(self.S_zz) if self.S_zz.size and self.S_zz[0, 0] > 0.0 else np.zeros_like(self.S_zz)
+        """(Σ w z zᵀ)⁺: zero before any weight (pseudo-inverse: a drift regressor that has not varied yet); once per
+        change of the sums (the screen, the fit and K all ask for it)."""
+        if self._G is None:
+            self._G = (np.linalg.pinv(self.S_zz) if self.S_zz.size and self.S_zz[0, 0] > 0.0
+                       else np.zeros_like(self.S_zz))
+        return self._G
 
     def _centred(self) -> tuple[np.ndarray, np.ndarray, float]:
         """The sums with the nuisance terms projected out: (Σ w b̃ r̃ᵀ, Σ w r̃ r̃ᵀ, Σ w |b̃|²)."""
@@ -248,14 +258,7 @@ class CentredWahba:
 
     @property
     def K(self) -> np.ndarray:
-        B = self._centred()[0]
-        sigma = np.trace(B)
-        K = np.empty((4, 4))
-        K[:3, :3] = B + B.T - sigma * np.eye(3)
-        z = np.array([B[1, 2] - B[2, 1], B[2, 0] - B[0, 2], B[0, 1] - B[1, 0]])
-        K[:3, 3] = K[3, :3] = z
-        K[3, 3] = sigma
-        return K
+        return davenport(self._centred()[0])
 
     def quaternion(self) -> np.ndarray:
         """Current estimate of C_b^n(0) as [w, x, y, z]; identity before two observations (one without
@@ -270,8 +273,8 @@ class CentredWahba:
         n, m = self.n_obs, len(self.S_zz)
         if 3 * n - 3 - 3 * m <= 0 or n < 4:
             return None
-        C = dcm_from_quat(self.quaternion()) if C is None else C          # C_b^n(0): b = C^T r + c
         S_br_c, S_rr_c, S_bb_c = self._centred()
+        C = dcm_from_quat(quaternion_from_K(davenport(S_br_c))) if C is None else C   # C_b^n(0): b = C^T r + c
         rss = S_bb_c - 2.0 * float(np.trace(C @ S_br_c)) + float(np.trace(S_rr_c))
         return C, S_rr_c, max(rss, 0.0) / (3 * n - 3 - 3 * m)
 

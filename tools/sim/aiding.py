@@ -53,10 +53,15 @@ def write_body_velocity_log(path: str | Path, t: np.ndarray, v_b: np.ndarray, ve
     return path
 
 
+def epoch_times(duration_s: float, rate_hz: float) -> np.ndarray:
+    """A sensor's epochs (s): every 1/rate from the first period to the end of the run."""
+    return np.arange(1, round(duration_s * rate_hz) + 1) / rate_hz
+
+
 def odometer_epochs(scenario: Scenario, seed: int) -> np.ndarray:
     """The scenario's odometer readings (N, 4): t, V_P^b (seeded; a noise stream apart from the IMU's)."""
     odo = scenario.odometer
-    t = np.arange(1, round(scenario.duration_s * odo.rate_hz) + 1) / odo.rate_hz
+    t = epoch_times(scenario.duration_s, odo.rate_hz)
     v = body_velocity(scenario.motion, t, np.asarray(odo.lever_b), np.full(3, odo.scale), odo.noise_mps,
                       np.random.default_rng([seed, 3]))
     return np.column_stack((t, v))
@@ -121,7 +126,7 @@ def gnss_fixes(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | None 
 def gnss_epochs(scenario: Scenario, seed: int) -> np.ndarray:
     """The scenario's GNSS fixes (N, 7): t, lat_deg, lon_deg, h_m, vE, vN, vU (seeded apart from the IMU)."""
     g = scenario.gnss
-    t = np.arange(1, round(scenario.duration_s * g.rate_hz) + 1) / g.rate_hz
+    t = epoch_times(scenario.duration_s, g.rate_hz)
     return np.column_stack((t, gnss_fixes(scenario.motion, t, np.asarray(g.lever_b), g.vel_noise_mps, g.pos_noise_m,
                                           np.random.default_rng([seed, 4]))))
 
@@ -161,7 +166,7 @@ def master_epochs(scenario: Scenario, seed: int) -> np.ndarray:
     """The master INS's output (N, 11): t, q (4, [w, x, y, z] of its C_bm^n), vE, vN, vU, lat_deg, lon_deg, h_m,
     with the scenario's white attitude noise (a random small rotation per epoch) and velocity noise."""
     m, vehicle = scenario.master, scenario.motion.vehicle
-    t = np.arange(1, round(scenario.duration_s * m.rate_hz) + 1) / m.rate_hz
+    t = epoch_times(scenario.duration_s, m.rate_hz)
     rng = np.random.default_rng([seed, 6])
     C_bm_n = vehicle.attitude(t)
     if m.att_noise_deg:
