@@ -55,9 +55,9 @@ class VelocityAidedPipeline(KalmanStagePipeline):
         return [("odo", aid)]
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
-                    dt_s: float, aid: np.ndarray | None) -> None:
+                    dt_s: float, aid: np.ndarray | None, fresh: bool) -> None:
         C_b_b0 = dcm_from_quat(q_b_b0)
-        if self._kalman_step(dalpha, dt_s, C_b_b0, aid):
+        if self._kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):
             return
         aided = aid is not None and bool(np.isfinite(aid).all())
         source: VelocityAidedSource = self.coarse.source

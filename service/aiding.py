@@ -4,8 +4,15 @@ Whatever the source (an aiding log, the serial aiding message, ``…/aid/<kind>`
 epochs pass through an :class:`AidingTrack`: their time stamps are moved back by the configured
 latency, an epoch not after the previous one is dropped and counted (a repeat if it carries the
 same time, out of order otherwise), and values at IMU sample times come from linear
-interpolation between the two epochs around each, or NaN (counted) when they are further apart
-than ``max_gap_s`` or the sample lies outside the epochs held. Nothing here is fatal.
+interpolation between the two epochs around each, or NaN (counted) when the two are a gap apart
+or the sample lies outside the epochs held. A gap is judged against the stream's own rate: two
+epochs are a gap apart when further apart than ``max_gap_s`` and than :data:`GAP_INTERVALS` of
+the stream's usual interval (the median of its last :data:`INTERVAL_HISTORY`), so a 1-Hz receiver
+is not one long run of gaps. Nothing here is fatal.
+
+Each value row comes with the sequence number of the newest epoch at or before its time
+(:meth:`AidingTrack.aid_at`): an estimator takes one observation or update per aiding epoch, not
+one per interpolated sample of the same two epochs (those are not independent).
 
 The track holds the epochs not yet passed by the IMU samples asked for (:meth:`release`), so its
 memory is bounded by the aiding latency (daemon) or the replay chunk, whatever the run length. An
@@ -32,20 +39,26 @@ class AidingCounters(Counters):
     repeats: int = 0
     out_of_order: int = 0
     non_finite: int = 0
-    gaps: int = 0                 # epochs that follow the previous one by more than max_gap_s
+    gaps: int = 0                 # epochs that follow the previous one by a gap (see the module docstring)
     unaided_queries: int = 0      # IMU times asked for without two epochs around them
     overflow: int = 0             # epochs dropped because the track was full (the aiding far ahead of the IMU)
 
 
 MAX_HELD_EPOCHS = 1 << 16
-"""Epochs a track holds ahead of the IMU (10 min of 100-Hz aiding, 4 MiB for GNSS)."""
+"""Epochs a track holds ahead of the IMU (10 min of 100-Hz aiding, 5 MiB for GNSS)."""
+GAP_INTERVALS = 2.5
+"""Epochs further apart than this many of the stream's usual intervals (and than ``max_gap_s``) are a gap: one
+missing epoch is not, two are."""
+INTERVAL_HISTORY = 16
+"""The stream's usual interval is the median of this many latest intervals (a gap does not move it)."""
 
 
 class AidingTrack:
     """The usable epochs of one aiding stream (time, then ``width`` values per epoch).
 
     latency_s : how late the stream's time stamps are (subtracted).
-    max_gap_s : two epochs further apart than this are not interpolated across.
+    max_gap_s : two epochs further apart than this and than :data:`GAP_INTERVALS` of the stream's usual interval
+        are not interpolated across (a gap).
     capacity : epochs held at most; further ones are dropped (``overflow``) until the IMU passes some.
     longitude_column : the value column (0-based) holding a longitude in degrees, interpolated the short way
         round ±180° (:meth:`for_kind` sets it from the kind's columns).
@@ -63,8 +76,11 @@ class AidingTrack:
         self.longitude_column = longitude_column
         self.quaternion_column = quaternion_column
         self.counters = AidingCounters()
-        self._epochs = np.empty((64, 1 + width))
+        # per epoch: time, sequence number, whether it may be interpolated from the one before (1.0) or follows
+        # a gap (0.0), the values. Judged once, as the epoch arrives: the same whenever the track is asked
+        self._epochs = np.empty((64, _VALUES + width))
         self._n = 0
+        self._intervals = np.full(INTERVAL_HISTORY, np.nan)
 
     @classmethod
     def for_kind(cls, kind: str, latency_s: float = 0.0, max_gap_s: float = 1.0) -> AidingTrack:
@@ -95,31 +111,43 @@ class AidingTrack:
             if self._n >= self.capacity:
                 self.counters.overflow += 1
                 continue
-            if last is not None and t - last > self.max_gap_s:
-                self.counters.gaps += 1
+            bridged = 0.0
+            if last is not None:
+                bridged = float(t - last <= self.gap_s(t - last))
+                self.counters.gaps += int(not bridged)
+                self._intervals = np.roll(self._intervals, -1)
+                self._intervals[-1] = t - last
             if self._n == len(self._epochs):
                 self._epochs = np.concatenate((self._epochs, np.empty_like(self._epochs)))[:max(self.capacity, 1)]
-            self._epochs[self._n, 0] = t
-            self._epochs[self._n, 1:] = row[1:]
+            self._epochs[self._n, :_VALUES] = t, self.counters.epochs, bridged
+            self._epochs[self._n, _VALUES:] = row[1:]
             self._n += 1
             self.counters.epochs += 1
+
+    def gap_s(self, interval_s: float) -> float:
+        """The longest interval (s) before a new one of ``interval_s`` that is not a gap: ``max_gap_s`` or
+        :data:`GAP_INTERVALS` times the stream's usual interval (the new one's own before there is a history)."""
+        seen = self._intervals[np.isfinite(self._intervals)]
+        usual = float(np.median(seen)) if len(seen) else interval_s
+        return max(self.max_gap_s, GAP_INTERVALS * usual)
 
     @property
     def latest_time(self) -> float | None:
         """Time (IMU clock) of the newest epoch; values up to it can be interpolated."""
         return None if self._n == 0 else float(self._epochs[self._n - 1, 0])
 
-    def values_at(self, t: np.ndarray) -> np.ndarray:
-        """Values (N, width) at increasing IMU times ``t`` (N,), NaN rows where nothing is known."""
+    def aid_at(self, t: np.ndarray) -> np.ndarray:
+        """Rows (N, 1 + width) at increasing IMU times ``t`` (N,): the sequence number of the newest epoch at or
+        before the time (counting every epoch the track took), then the values; NaN rows where nothing is known."""
         t = np.asarray(t, dtype=float).reshape(-1)
-        out = np.full((len(t), self.width), np.nan)
+        out = np.full((len(t), 1 + self.width), np.nan)
         held = self._epochs[:self._n]
         if self._n >= 2:
             k = np.clip(np.searchsorted(held[:, 0], t, side="right"), 1, self._n - 1)
             t0, t1 = held[k - 1, 0], held[k, 0]
-            ok = (t >= t0 - TIME_TOLERANCE_S) & (t <= t1 + TIME_TOLERANCE_S) & (t1 - t0 <= self.max_gap_s)
+            ok = (t >= t0 - TIME_TOLERANCE_S) & (t <= t1 + TIME_TOLERANCE_S) & (held[k, 2] > 0.0)
             f = ((t - t0) / (t1 - t0))[ok, None]
-            before, after = held[k[ok] - 1, 1:], held[k[ok], 1:].copy()
+            before, after = held[k[ok] - 1, _VALUES:], held[k[ok], _VALUES:].copy()
             q, lon = self.quaternion_column, self.longitude_column
             if q is not None:     # the nearer sign: interpolating q towards -q would pass through zero
                 flip = np.einsum("ij,ij->i", before[:, q:q + 4], after[:, q:q + 4]) < 0.0
@@ -127,11 +155,12 @@ class AidingTrack:
             step = after - before
             if lon is not None:   # the short way round: 179.99° to -179.99° is 0.02° east
                 step[:, lon] = np.mod(step[:, lon] + 180.0, 360.0) - 180.0
-            out[ok] = before + f * step
+            out[ok, 1:] = before + f * step
             if q is not None:
-                out[ok, q:q + 4] /= np.linalg.norm(out[ok, q:q + 4], axis=1, keepdims=True)
+                out[ok, 1 + q:5 + q] /= np.linalg.norm(out[ok, 1 + q:5 + q], axis=1, keepdims=True)
             if lon is not None:
-                out[:, lon] = np.mod(out[:, lon] + 180.0, 360.0) - 180.0
+                out[:, 1 + lon] = np.mod(out[:, 1 + lon] + 180.0, 360.0) - 180.0
+            out[ok, 0] = np.where(t[ok] >= t1[ok] - TIME_TOLERANCE_S, held[k[ok], 1], held[k[ok] - 1, 1])
         if self._n:
             # a time at a held epoch takes that epoch's values, whatever its neighbours: the newest epoch (live,
             # before the next arrives) and the first after a gap give the same as in a replay
@@ -139,9 +168,14 @@ class AidingTrack:
             below = np.maximum(k - 1, 0)
             nearest = np.where(np.abs(held[below, 0] - t) < np.abs(held[k, 0] - t), below, k)
             at = np.abs(held[nearest, 0] - t) <= TIME_TOLERANCE_S
-            out[at] = held[nearest[at], 1:]
+            out[at, 0] = held[nearest[at], 1]
+            out[at, 1:] = held[nearest[at], _VALUES:]
         self.counters.unaided_queries += int(np.isnan(out[:, 0]).sum())
         return out
+
+    def values_at(self, t: np.ndarray) -> np.ndarray:
+        """Values (N, width) at increasing IMU times ``t`` (N,), NaN rows where nothing is known."""
+        return self.aid_at(t)[:, 1:]
 
     def at(self, t: float) -> np.ndarray | None:
         """Values (width,) at one IMU time, or None."""
@@ -156,10 +190,14 @@ class AidingTrack:
             self._n -= keep
 
 
+_VALUES = 3
+"""Where an epoch's values start in the track's rows (after its time, sequence number and bridged flag)."""
+
+
 class AidingFeed:
     """An aiding stream read as far ahead as the IMU samples need it (a log, a simulated sensor).
 
-    ``blocks`` yields epoch arrays (N, 1 + width) in the stream's order; :meth:`values_at` pulls
+    ``blocks`` yields epoch arrays (N, 1 + width) in the stream's order; :meth:`aid_at` pulls
     blocks into the track until it reaches the last IMU time asked for, then interpolates.
     """
 
@@ -168,17 +206,18 @@ class AidingFeed:
         self._blocks = blocks
         self._exhausted = False
 
-    def values_at(self, t: np.ndarray) -> np.ndarray:
-        """Values (N, width) at IMU times t (N,), increasing; NaN where the stream has nothing."""
+    def aid_at(self, t: np.ndarray) -> np.ndarray:
+        """Rows (N, 1 + width) at IMU times t (N,), increasing: epoch number, values (:meth:`AidingTrack.aid_at`);
+        NaN where the stream has nothing."""
         while not self._exhausted and (self.track.latest_time is None or self.track.latest_time < t[-1]):
             block = next(self._blocks, None)
             if block is None:
                 self._exhausted = True
             else:
                 self.track.push(block)
-        values = self.track.values_at(t)
+        rows = self.track.aid_at(t)
         self.track.release(float(t[-1]))
-        return values
+        return rows
 
 
 class AidingWait:
@@ -199,19 +238,20 @@ class AidingWait:
         self._rows = np.concatenate((self._rows, rows))
 
     def release(self, everything: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """(samples (M, 7), aiding values (M, width)) of the samples whose wait is over (all if ``everything``)."""
+        """(samples (M, 7), aiding rows (M, 1 + width): epoch number, values (:meth:`AidingTrack.aid_at`)) of the
+        samples whose wait is over (all if ``everything``)."""
         t = self._rows[:, 0]
         if len(t) == 0:
-            return self._rows, np.empty((0, self.track.width))
+            return self._rows, np.empty((0, 1 + self.track.width))
         latest = self.track.latest_time
         until = np.inf if everything else max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
                                               t[-1] - self.max_wait_s)
         n = int(np.searchsorted(t, until, side="right"))
         out, self._rows = self._rows[:n], self._rows[n:]
-        values = self.track.values_at(out[:, 0])
+        aid = self.track.aid_at(out[:, 0])
         if n:
             self.track.release(float(out[-1, 0]))
-        return out, values
+        return out, aid
 
     @property
     def held(self) -> int:

@@ -37,10 +37,10 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
 
     source: GnssSource
 
-    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
-                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
+                aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.source.accumulate(elapsed_s, alpha)
-        return super().observe(elapsed_s, q_b_b0, alpha, aid)
+        return super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
 
     def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The pairs weighted by the source's stated noise, with its drift regressor if it has one."""
@@ -85,11 +85,11 @@ class GnssAidedPipeline(GyroRateAidPipeline):
         return [("gnss_vel", aid[3:9]), ("gnss_pos", np.r_[aid[:2] * DEG, aid[2]])]
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
-                    dt_s: float, aid: np.ndarray | None) -> None:
+                    dt_s: float, aid: np.ndarray | None, fresh: bool) -> None:
         """The Kalman stage's step once it runs; before it, the hand-over from the coarse stage. ``aid``: the fix at
         the step's end, then the gyro rate (3, rad/s)."""
         C_b_b0 = dcm_from_quat(q_b_b0)
-        if self.fine is None or self._kalman_step(dalpha, dt_s, C_b_b0, aid):
+        if self.fine is None or self._kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):
             return
         ad = self.config.aiding
         if not np.isfinite(aid).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:

@@ -27,13 +27,16 @@ class KalmanStagePipeline(AlignmentPipeline):
         """(measurement name, value) of one control step's aiding values (finite)."""
         raise NotImplementedError
 
-    def _kalman_step(self, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray, aid: np.ndarray | None) -> bool:
+    def _kalman_step(self, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray, aid: np.ndarray | None,
+                     fresh: bool) -> bool:
         """Once the filter runs: predict over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body
-        attitude C_b^{b0}) and fold the step's measurements if its aiding is there. False before the filter runs."""
+        attitude C_b^{b0}) and fold the step's measurements if its aiding is there and ``fresh`` (an epoch the
+        filter has not had: the same two epochs interpolated again are not a new measurement). False before the
+        filter runs."""
         if self.fine is None or not self.fine.active:
             return False
         self.fine.predict(dalpha, dt_s, C_b_b0)
-        if aid is not None and np.isfinite(aid).all():
+        if fresh and aid is not None and np.isfinite(aid).all():
             for name, value in self._measurements(aid):
                 self.fine.update(name, value)
         return True
@@ -72,7 +75,7 @@ class GyroRateAidPipeline(KalmanStagePipeline):
         dtheta = samples[:, 1:4]
         previous = np.concatenate((self._dtheta_last[None], dtheta[:-1]))
         rates = (1.5 * dtheta - 0.5 * previous) / self.sample_period_s
-        return np.hstack((samples[:, 7:], rates))
+        return np.hstack((super()._aid(samples), rates))
 
     def _process_blocks(self, samples: np.ndarray, records: list) -> None:
         super()._process_blocks(samples, records)

@@ -103,7 +103,7 @@ class AlignmentPipeline:
         self._disturbed_until = -np.inf
         self._reference_C_b0_n0: np.ndarray | None = None
         self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
-        self._pending = np.empty((self.block_samples, 7 + self.aid_width))
+        self._pending = np.empty((self.block_samples, 7 + (1 + self.aid_width if self.aid_width else 0)))
         self._n_pending = 0
         self._epoch_count: int | None = None
         self._emitted_count = -(2**62)
@@ -114,6 +114,7 @@ class AlignmentPipeline:
         self.fine = self._make_fine()
         self._alpha_step = np.zeros(3)
         self._t_step = t_start
+        self._step_epoch = -1.0   # the newest aiding epoch at the last control step
         self._restarted = t_start is not None
         self._lagged_C_b0_n0: np.ndarray | None = None
         self._next_check_s = self.config.disturbance.check_interval_s
@@ -142,14 +143,15 @@ class AlignmentPipeline:
 
     def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
                 aid: np.ndarray | None = None) -> list[ResultRecord]:
-        """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, and for an aided pipeline the aiding
-        values at the samples, aid (N, ``aid_width``), NaN where none); return the records they complete."""
+        """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, and for an aided pipeline the aiding at the
+        samples, aid (N, 1 + ``aid_width``): the number of the newest aiding epoch at or before the sample, then
+        the values, NaN where none (:meth:`AidingTrack.aid_at`)); return the records they complete."""
         t = np.asarray(t, dtype=float).reshape(-1)
         if len(t) == 0:
             return []
         columns = [t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))]
         if self.aid_width:
-            columns.append(np.reshape(aid, (-1, self.aid_width)))
+            columns.append(np.reshape(aid, (-1, 1 + self.aid_width)))
         samples = np.column_stack(columns)
         if self._epoch_count is None:
             self._epoch_count = int(self._epoch_counts(np.asarray([t[0] - self.sample_period_s]))[0])
@@ -185,7 +187,7 @@ class AlignmentPipeline:
             return
         scratch = self.coarse.scratch()
         elapsed, q_b_b0, alpha = scratch.integrate(pending[:, 0], pending[:, 1:4], pending[:, 4:7])
-        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, self._aid(pending))
+        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, self._aid(pending), self._aid_epoch(pending))
         folded = 0
         for j in new:
             folded = _fold_until(scratch.solver, due, dK, trace_R, folded, j)
@@ -198,8 +200,8 @@ class AlignmentPipeline:
         M = self.block_samples
         t = samples[:, 0]
         elapsed, q_b_b0, alpha = self.coarse.integrate(t, samples[:, 1:4], samples[:, 4:7], M)
-        aid = self._aid(samples)
-        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, aid)
+        aid, aid_epoch = self._aid(samples), self._aid_epoch(samples)
+        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, aid, aid_epoch)
         counts = self._epoch_counts(t)
         epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
         self._epoch_count = int(counts[-1])
@@ -214,7 +216,7 @@ class AlignmentPipeline:
                     self._emitted_count = int(counts[j])
             folded = _fold_until(solver, due, dK, trace_R, folded, end)
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
-                               None if aid is None else aid[end])
+                               None if aid is None else aid[end], None if aid_epoch is None else aid_epoch[end])
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
@@ -222,13 +224,22 @@ class AlignmentPipeline:
                 return
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
-        return samples[:, 7:] if self.aid_width else None
+        """The aiding values of the samples (N, ``aid_width``), None without aiding."""
+        return samples[:, 8:] if self.aid_width else None
+
+    def _aid_epoch(self, samples: np.ndarray) -> np.ndarray | None:
+        """The number (N,) of the newest aiding epoch at or before each sample (NaN: none), None without aiding."""
+        return samples[:, 7] if self.aid_width else None
 
     def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray,
-                      aid: np.ndarray | None) -> None:
+                      aid: np.ndarray | None, aid_epoch: float | None) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
         self._alpha_step, self._t_step = alpha, t_end
-        self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid)
+        # one Kalman update per aiding epoch: a slower aid interpolated over several steps is one measurement
+        fresh = aid_epoch is not None and aid_epoch > self._step_epoch
+        if fresh:
+            self._step_epoch = aid_epoch
+        self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
         d = self.config.disturbance
         if d.enabled and self.checks_translation and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + d.check_interval_s
@@ -280,7 +291,9 @@ class AlignmentPipeline:
             self._reference_C_b0_n0 = self.coarse.source.C_n_n0(elapsed_s) @ trusted @ C_b_b0.T
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
-                    dt_s: float, aid: np.ndarray | None) -> None:
+                    dt_s: float, aid: np.ndarray | None, fresh: bool) -> None:
+        """One control step's stage work: Δα (3,) m/s over ``dt_s`` ending at ``t_end``; ``aid`` the aiding values at
+        the step's end, ``fresh`` whether they come from an aiding epoch newer than the last step's."""
         if self.fine is None:
             return
         if not self.fine.active and self._initial_C_b_n is not None:

@@ -39,10 +39,10 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
 
     source: MasterSource
 
-    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
-                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
+                aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.source.mounting_estimate = self.mounting     # the lever arm in the slave's axes
-        due, outer, pairs = super().observe(elapsed_s, q_b_b0, alpha, aid)
+        due, outer, pairs = super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
         return np.repeat(due, 2), outer, pairs            # two pairs per epoch
 
     def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -146,11 +146,11 @@ class TransferPipeline(GyroRateAidPipeline):
         return [("master_vel", np.r_[aid[4:7], aid[10:13]]), ("master_att", aid[:4])]
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
-                    dt_s: float, aid: np.ndarray | None) -> None:
+                    dt_s: float, aid: np.ndarray | None, fresh: bool) -> None:
         """Phase 2's prediction and matching per control step; before it, the switch from phase 1. ``aid``:
         the master's 10 values at the step's end, then the slave's gyro rate (3, rad/s)."""
         C_b_b0 = dcm_from_quat(q_b_b0)
-        if self.fine is None or self._kalman_step(dalpha, dt_s, C_b_b0, aid) or not np.isfinite(aid).all():
+        if self.fine is None or self._kalman_step(dalpha, dt_s, C_b_b0, aid, fresh) or not np.isfinite(aid).all():
             return
         ad = self.config.aiding
         noise = self.coarse.noise_sigma(elapsed_s)

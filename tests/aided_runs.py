@@ -10,5 +10,5 @@ def process_simulation(pipeline, scenario, seed, feed, piece=None):
         step = piece or len(chunk.t)
         for k in range(0, len(chunk.t), step):
             s = slice(k, k + step)
-            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.values_at(chunk.t[s]))
+            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.aid_at(chunk.t[s]))
     return records

@@ -63,10 +63,35 @@ def test_track_shifts_by_latency_and_interpolates_exactly():
 
 def test_track_counts_repeats_disorder_non_finite_and_gaps():
     track = AidingTrack(1, max_gap_s=1.0)
-    track.push(np.array([[1.0, 1.0], [1.0, 1.0], [0.5, 1.0], [1.5, np.nan], [4.0, 2.0]]))
+    track.push(np.array([[1.0, 1.0], [1.0, 1.0], [0.5, 1.0], [1.5, np.nan], [1.2, 1.0], [4.0, 2.0]]))
     c = track.counters
-    assert (c.epochs, c.repeats, c.out_of_order, c.non_finite, c.gaps) == (2, 1, 1, 1, 1)
-    assert track.at(2.0) is None     # across a 3-s gap: nothing, not a made-up value
+    assert (c.epochs, c.repeats, c.out_of_order, c.non_finite, c.gaps) == (3, 1, 1, 1, 1)
+    assert track.at(2.0) is None     # across a 2.8-s gap: nothing, not a made-up value
+
+
+def test_a_gap_is_judged_against_the_streams_own_rate():
+    """GIVEN a 1-Hz stream and max_gap_s 0.5, THEN its 1-s intervals are no gaps and are interpolated across, one
+    missing epoch (2 s) is no gap either, two (3 s) are; a 50-Hz stream has gaps from max_gap_s on, as before."""
+    slow = AidingTrack(1, max_gap_s=0.5)
+    t = np.r_[np.arange(10.0), 11.0, 12.0, 15.0, 16.0]          # 10 s missing one epoch, then two
+    slow.push(np.column_stack((t, t)))
+    assert slow.counters.gaps == 1
+    assert slow.values_at(np.array([3.25, 10.5, 13.0]))[:, 0] == pytest.approx([3.25, 10.5, np.nan], nan_ok=True)
+    fast = AidingTrack(1, max_gap_s=0.5)
+    t = np.r_[np.arange(50) * 0.02, 1.4, 2.0, 2.02]              # 0.42 s: no gap; 0.6 s: a gap
+    fast.push(np.column_stack((t, t)))
+    assert fast.counters.gaps == 1 and np.isnan(fast.values_at(np.array([1.7]))[0, 0])
+
+
+def test_each_value_carries_the_number_of_the_newest_epoch_at_or_before_it():
+    """The number tells an estimator whether a sample brings a new epoch: samples between the same two epochs
+    carry the earlier one's, a sample at an epoch carries that one's, a sample with no values NaN."""
+    track = AidingTrack(1, latency_s=0.5)
+    track.push(np.array([[0.5, 0.0], [1.5, 10.0], [1.5, 99.0], [2.5, 20.0]]))   # a repeat: not an epoch, no number
+    rows = track.aid_at(np.array([-0.5, 0.0, 0.3, 0.9999999, 1.0, 1.7, 2.0, 2.5]))
+    np.testing.assert_allclose(rows[1:, 0], [0, 0, 1, 1, 1, 2, np.nan])
+    np.testing.assert_allclose(rows[1:-1, 1], [0.0, 3.0, 10.0, 10.0, 17.0, 20.0])
+    assert np.isnan(rows[0]).all() and np.isnan(rows[-1]).all()
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -103,10 +128,10 @@ def test_feed_reads_ahead_only_as_far_as_the_imu_needs():
             yield b
 
     feed = AidingFeed(AidingTrack(1), source())
-    assert feed.values_at(np.array([0.15, 0.25]))[:, 0] == pytest.approx([1.5, 2.5])
+    assert feed.aid_at(np.array([0.15, 0.25]))[:, 1] == pytest.approx([1.5, 2.5])
     assert len(pulled) == 1
-    assert feed.values_at(np.array([2.55]))[0, 0] == pytest.approx(25.5) and len(pulled) == 3
-    assert np.isnan(feed.values_at(np.array([20.0]))[0, 0])         # past the end: nothing, no error
+    assert feed.aid_at(np.array([2.55]))[0, 1] == pytest.approx(25.5) and len(pulled) == 3
+    assert np.isnan(feed.aid_at(np.array([20.0]))[0, 1])         # past the end: nothing, no error
 
 
 def test_a_track_far_ahead_of_the_imu_stays_bounded_and_counts_what_it_drops():

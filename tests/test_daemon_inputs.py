@@ -371,12 +371,12 @@ def test_a_sample_at_the_newest_aiding_epoch_gets_its_values_live_as_in_the_repl
     the replay, whose feed already holds the epochs after it."""
     epochs = np.array([[0.1, 1.0], [0.2, 2.0], [1.5, 3.0], [1.6, 4.0]])   # a gap (> max_gap_s) before 1.5 s
     at = np.array([0.1, 1.5])
-    replayed = AidingFeed(AidingTrack(1, max_gap_s=0.5), iter([epochs])).values_at(at)[:, 0]
+    replayed = AidingFeed(AidingTrack(1, max_gap_s=0.5), iter([epochs])).aid_at(at)[:, 1]
     wait, live = AidingWait(AidingTrack(1, max_gap_s=0.5), max_wait_s=10.0), []
     for row in epochs:
         wait.push(np.array([[row[0], 0, 0, 0, 0, 0, 0.0]]))   # an IMU sample at the epoch's time, then the epoch
         wait.track.push(row)
         rows, values = wait.release()
-        live += [v for t, v in zip(rows[:, 0], values[:, 0], strict=True) if t in at]
+        live += [v for t, v in zip(rows[:, 0], values[:, 1], strict=True) if t in at]
     assert replayed.tolist() == [1.0, 3.0]
     assert live == replayed.tolist()

@@ -41,7 +41,7 @@ def run_pipeline(scenario, config, seed=1):
     feed = AidingFeed(AidingTrack(3), iter([odometer_epochs(scenario, seed)]))
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed):
-        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.values_at(chunk.t))
+        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.aid_at(chunk.t))
     return pipeline, feed, records
 
 
@@ -104,7 +104,7 @@ def test_a_stream_in_small_pieces_gives_the_same_bits_as_one_chunk():
         records = []
         for k in range(0, len(chunk.t), piece):
             s = slice(k, k + piece)
-            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.values_at(chunk.t[s]))
+            records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.aid_at(chunk.t[s]))
         return records
 
     whole, pieces = run(len(chunk.t)), run(37)
@@ -148,7 +148,7 @@ def test_odometer_scale_factor_and_lever_arm_are_fitted_in_the_window_and_carrie
     pipeline = build_pipeline(config, short.site, short.rate_hz, short.grade.datasheet(), ["odo"])
     feed = AidingFeed(AidingTrack(3), iter([odometer_epochs(short, 3)]))
     for chunk in simulate(short.motion, short.site, short.errors, short.rate_hz, short.duration_s, 3):
-        pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.values_at(chunk.t))
+        pipeline.process(chunk.t, chunk.dtheta, chunk.dv, feed.aid_at(chunk.t))
     window = pipeline.coarse.source.result.nuisance
     assert window["odo_scale"][0] == pytest.approx(0.005, abs=0.001)
     assert window["odo_lever"] == pytest.approx([0.3, 1.5, -0.8], abs=0.3)

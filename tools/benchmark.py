@@ -94,7 +94,7 @@ def bench_aided_latency(speed_mps: int = 80, seconds: float = 180.0) -> dict[str
     for k in range(n):
         start = time.perf_counter()
         track.push(epochs[k:k + 1])
-        pipeline.process(chunk.t[k:k + 1], chunk.dtheta[k:k + 1], chunk.dv[k:k + 1], track.values_at(chunk.t[k:k + 1]))
+        pipeline.process(chunk.t[k:k + 1], chunk.dtheta[k:k + 1], chunk.dv[k:k + 1], track.aid_at(chunk.t[k:k + 1]))
         track.release(float(chunk.t[k]))
         cost[k] = time.perf_counter() - start
     us = cost * 1e6

@@ -100,7 +100,7 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                           seed):
-        aid = None if feed is None else feed.values_at(chunk.t)
+        aid = None if feed is None else feed.aid_at(chunk.t)
         records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, aid)
     counters = None if feed is None else {**feed.track.counters.as_dict(), **pipeline.aiding_counters()}
     t = np.array([r.t for r in records])

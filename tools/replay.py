@@ -84,7 +84,7 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
                 disable=not show, transient=True) as bar:
             task = bar.add_task("replay", total=size, info="")
             for t, dtheta, dv in log.blocks():
-                aid = None if aid_feed is None else aid_feed.values_at(t)
+                aid = None if aid_feed is None else aid_feed.aid_at(t)
                 for record in pipeline.process(t, dtheta, dv, aid):
                     out.write(record.to_json() + "\n")
                     records += 1

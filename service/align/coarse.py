@@ -68,6 +68,7 @@ class InertialCoarseAlignment:
         self.t: float | None = None
         self._obs_count = 0
         self.unaided_observations = 0
+        self._aid_epoch = -1.0   # the aiding epoch of the last observation
 
     def update(self, dtheta: np.ndarray, dv: np.ndarray, t: float) -> None:
         """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
@@ -92,12 +93,15 @@ class InertialCoarseAlignment:
         self.t = float(t[-1])
         return t - self.t0, q_b_b0, alpha
 
-    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray,
-                aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
+                aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The observations due among integrated samples: (sample indices, δK, tr R) for the solver's fold.
 
         ``aid`` (N, k): aiding values at the samples (NaN where none), for an aided source; an
-        observation due at a sample without them is skipped and counted.
+        observation due at a sample without them is skipped and counted. ``aid_epoch`` (N,): the number
+        of the newest aiding epoch at or before each sample; an observation due before a newer epoch
+        than the last observation's is skipped (not counted): an aid slower than the observations
+        gives one observation per epoch, not several interpolated from the same two.
         """
         # observation k is due at k·interval; a sample within half a period of it takes it
         counts = np.floor((elapsed_s + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
@@ -107,6 +111,10 @@ class InertialCoarseAlignment:
             usable = np.isfinite(aid[due]).all(axis=1)
             self.unaided_observations += int(len(due) - usable.sum())
             due = due[usable]
+            if aid_epoch is not None:
+                epoch = aid_epoch[due]
+                due = due[np.diff(epoch, prepend=self._aid_epoch) > 0.0]
+                self._aid_epoch = max(self._aid_epoch, float(epoch[-1])) if len(epoch) else self._aid_epoch
         b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due], None if aid is None else aid[due])
         return (due, *self.prepare_pairs(elapsed_s[due], b, r))
 
