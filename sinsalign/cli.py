@@ -96,8 +96,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
 
 
 def _aided_table(name: str, seeds: range, out: Path) -> bool:
-    """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS) and plots; False for
-    other names."""
+    """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates: slower GNSS
+    receivers) and plots; False for other names."""
     if name == "seed003":
         from sinsalign.tools.evaluate_aided import plot_seed003 as plot
         from sinsalign.tools.evaluate_aided import seed003_table as table
@@ -107,6 +107,9 @@ def _aided_table(name: str, seeds: range, out: Path) -> bool:
     elif name == "seed004":
         from sinsalign.tools.evaluate_gnss import plot_seed004 as plot
         from sinsalign.tools.evaluate_gnss import seed004_table as table
+    elif name == "seed004-rates":
+        from sinsalign.tools.evaluate_gnss import plot_rates as plot
+        from sinsalign.tools.evaluate_gnss import rate_table as table
     else:
         return False
     text, runs = table(seeds)
@@ -398,7 +401,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "seed002 for the transfer-alignment table (dual model vs phase 1 alone, master faults; then phase 1 "
                    "against the seed's additive-quaternion EKF), or "
                    "seed004 for the in-flight GNSS table (VIF vs PIF, lever arm compensated or ignored, and VIF "
-                   "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty)")
+                   "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty), or seed004-rates for "
+                   "the same flight with 50/10/5/1-Hz receivers (120 s: accuracy, σ honesty, gaps)")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--seed-sets", type=int, default=1, metavar="K",

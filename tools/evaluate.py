@@ -114,23 +114,26 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
                      run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error)
 
 
-def _run_task(args: tuple[str, int, dict, float | None, dict]) -> RunResult:
-    """One seed of :func:`monte_carlo`: scenario name, seed, overrides, duration (s), run_once keywords."""
-    name, seed, overrides, duration_s, options = args
+def _run_task(args: tuple[str, int, dict, float | None, float | None, dict]) -> RunResult:
+    """One seed of :func:`monte_carlo`: scenario name, seed, overrides, duration (s), aiding rate (Hz), run_once
+    keywords."""
+    name, seed, overrides, duration_s, aid_rate_hz, options = args
     scenario = get_scenario(name)
     if duration_s is not None:
         scenario = replace(scenario, duration_s=duration_s)
+    if aid_rate_hz is not None:
+        scenario = scenario.with_aid_rate(aid_rate_hz)
     return run_once(scenario, seed, config_from_mapping(overrides), **options)
 
 
 def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
                 progress: bool = True, label: str = "", initial_error_deg: Sequence[float] | None = None,
                 aid_faults: dict | None = None, duration_s: float | None = None,
-                gnss_lever_stated: bool = True) -> list[RunResult]:
+                gnss_lever_stated: bool = True, aid_rate_hz: float | None = None) -> list[RunResult]:
     """Run every seed (in parallel processes); results in seed order. See :func:`run_once`;
-    ``duration_s`` cuts the scenario short."""
+    ``duration_s`` cuts the scenario short, ``aid_rate_hz`` runs its aiding sensor at another rate."""
     options = {"initial_error_deg": initial_error_deg, "aid_faults": aid_faults, "gnss_lever_stated": gnss_lever_stated}
-    tasks = [(scenario_name, s, overrides or {}, duration_s, options) for s in seeds]
+    tasks = [(scenario_name, s, overrides or {}, duration_s, aid_rate_hz, options) for s in seeds]
     return run_parallel(_run_task, tasks, f"{scenario_name} {label}".strip(), progress, workers)
 
 

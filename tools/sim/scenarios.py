@@ -78,6 +78,14 @@ class Scenario:
             e, gyro_bias_rad_s=tuple(float(v) for v in signs[0] * e.gyro_bias_rad_s),
             acc_bias_ms2=tuple(float(v) for v in signs[1] * e.acc_bias_ms2)))
 
+    def with_aid_rate(self, rate_hz: float) -> Scenario:
+        """The scenario with its aiding sensor (GNSS, master or odometer) at ``rate_hz`` instead of its own."""
+        for kind in ("gnss", "master", "odometer"):
+            spec = getattr(self, kind)
+            if spec is not None:
+                return replace(self, **{kind: replace(spec, rate_hz=rate_hz)})
+        raise ValueError(f"scenario {self.name} has no aiding sensor")
+
     def without_errors(self) -> Scenario:
         odometer = None if self.odometer is None else replace(self.odometer, noise_mps=0.0)
         gnss = None if self.gnss is None else replace(self.gnss, vel_noise_mps=0.0, pos_noise_m=0.0)
