@@ -127,9 +127,15 @@ class AidingTrack:
     def gap_s(self, interval_s: float) -> float:
         """The longest interval (s) before a new one of ``interval_s`` that is not a gap: ``max_gap_s`` or
         :data:`GAP_INTERVALS` times the stream's usual interval (the new one's own before there is a history)."""
+        usual = self.usual_interval_s
+        return max(self.max_gap_s, GAP_INTERVALS * (interval_s if usual is None else usual))
+
+    @property
+    def usual_interval_s(self) -> float | None:
+        """The stream's usual interval between epochs (s): the median of its last :data:`INTERVAL_HISTORY`; None
+        before two epochs."""
         seen = self._intervals[np.isfinite(self._intervals)]
-        usual = float(np.median(seen)) if len(seen) else interval_s
-        return max(self.max_gap_s, GAP_INTERVALS * usual)
+        return float(np.median(seen)) if len(seen) else None
 
     @property
     def latest_time(self) -> float | None:
@@ -256,3 +262,13 @@ class AidingWait:
     @property
     def held(self) -> int:
         return len(self._rows)
+
+    @property
+    def notice(self) -> str | None:
+        """What the operator must change when the aiding comes less often than ``max_wait_s``: a sample after an
+        epoch leaves before the next epoch is there, unaided (and unlike a replay of the same data)."""
+        interval = self.track.usual_interval_s
+        if interval is None or interval <= self.max_wait_s:
+            return None
+        return (f"aiding epochs come less often than aiding.max_wait_s ({self.max_wait_s:g} s): samples leave before "
+                "the next epoch and go unaided; set max_wait_s to at least the epochs' interval plus their latency")

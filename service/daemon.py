@@ -90,7 +90,7 @@ class Daemon:
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.counters = SampleCounters()
         self.last_error: str | None = None
-        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None}
+        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None, "aiding": None}
         self._disturbances_before = 0
         self.last_record: ResultRecord | None = None
         self.t_last: float | None = None
@@ -250,7 +250,8 @@ class Daemon:
                 self._record_raw(t, segment.rows[:, 1:4], segment.rows[:, 4:7])
                 records += self._feed(segment.rows)
             for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance),
-                                 ("alignment", self.pipeline.last_notice)):
+                                 ("alignment", self.pipeline.last_notice),
+                                 ("aiding", None if self._wait is None else self._wait.notice)):
                 if text and text != self._reported[source]:   # report each new event once
                     self._reported[source] = text
                     self._error(text)

@@ -300,6 +300,37 @@ def test_the_daemon_runs_the_gnss_kalman_stage_on_serial_aiding_frames(tmp_path,
     assert np.abs(phi[t >= 20.0, 2]).max() < 0.2
 
 
+def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_path, pty_pair, running):
+    """GIVEN a 1-Hz GNSS receiver (the default max_gap_s 0.5; max_wait_s 1.5 as the README asks: the interval plus
+    the latency), fixes 0.3 s of data late as serial aiding frames, THEN its 1-s intervals are no gaps, the only
+    fault counted is the 9 observations before the first fix, the Kalman stage takes each fix once (one update per
+    fix, not one per 0.1-s step), no notice is raised, the records equal the replay's and the heading is right."""
+    scenario = get_scenario("seed004").with_aid_rate(1.0).for_seed(1)
+    epochs = gnss_epochs(scenario, 1)[:round(GNSS_SECONDS)]
+    records, counters, config = run_aided(tmp_path, pty_pair, running, scenario, "gnss", epochs, GNSS_SECONDS,
+                                          GNSS_SPEED, 0.3, "serial",
+                                          {"gnss_lever_m": list(scenario.gnss.lever_b), "max_wait_s": 1.5,
+                                           "gnss_handover_s": 12.0})
+    assert messages.faults(counters) == {"gnss_unaided_observations": 9}
+    fixes_in_kalman_stage = int((epochs[:, 0] > 12.0).sum())
+    assert counters["gnss_vel_accepted"] + counters.get("gnss_vel_rejected", 0) == fixes_in_kalman_stage
+    assert counters["gnss_pos_accepted"] + counters.get("gnss_pos_rejected", 0) == fixes_in_kalman_stage
+    write_gnss_log(tmp_path / "gnss.csv", epochs, scenario.gnss.lever_b)
+    assert_same_as_replay(records, tmp_path / "recorded.csv", tmp_path, config, {"gnss": str(tmp_path / "gnss.csv")})
+    t, phi = attitude_errors_deg(scenario, records)
+    sigma = np.array([m["heading_sigma_deg"] for m in records])
+    # seed 1 measured: 2.6° at 5 s, 0.45° at 20 s (twelve fixes before the hand-over), 0.13° at 24 s, at most 1.17σ
+    assert (np.abs(phi[t >= 5.0, 2]) <= 3.0 * sigma[t >= 5.0]).all() and abs(phi[-1, 2]) < 0.2
+
+
+def test_the_wait_says_when_the_aiding_comes_less_often_than_max_wait_s():
+    wait = AidingWait(AidingTrack(1), max_wait_s=0.5)
+    wait.track.push(np.array([[0.0, 1.0], [0.4, 1.0]]))
+    assert wait.notice is None
+    wait.track.push(np.array([[1.4, 1.0], [2.4, 1.0]]))         # the median interval is now 1 s
+    assert "aiding.max_wait_s (0.5 s)" in wait.notice
+
+
 def test_a_burst_of_gnss_glitches_in_the_kalman_stage_raises_the_screening_alarm_live(tmp_path, pty_pair, running):
     """GIVEN a 2-s GNSS glitch (20 m/s east, 50 m north) after the Kalman stage has started, THEN the gate turns
     the glitch fixes away (counted as screening, not faults), a status reports health "degraded" for the burst,

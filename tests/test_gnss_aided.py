@@ -83,7 +83,9 @@ def test_exact_sensors_stay_exact_across_a_gap_in_the_fixes_in_either_formula():
     """The integrals over the fixes come from positions (VIF's ∫ω×V, PIF's J) or from every IMU sample
     (PIF's ∫α), not from a trapezoid over the velocities. What a gap still costs is the trapezoid of
     gravity (its size and direction follow the position: 0.0046 m/s after 20 s of this flight) and, in
-    PIF, of ∫J: VIF stays < 0.001° across 10 s without fixes, PIF across 5 s."""
+    PIF, of ∫J: VIF stays < 0.001° across 10 s without fixes, PIF across 5 s. Inside the gap the output's
+    navigation frame n(t) follows the position carried on at the last fix's velocity (nothing later is known
+    live): the flight's turn puts it up to 0.0016° off there (held at the last fix instead: 0.0068°)."""
     scenario = replace(get_scenario("seed004-ideal"), duration_s=60.0)
     for formula, gap_s in (("vif", 10.0), ("pif", 5.0)):
         counters = {}
@@ -91,7 +93,9 @@ def test_exact_sensors_stay_exact_across_a_gap_in_the_fixes_in_either_formula():
                            faults={"outage_s": (20.0, 20.0 + gap_s)}, counters=counters)
         t, phi = errors_deg(scenario, records)
         assert counters["gnss_coarse_rejected"] == 0 and counters["gnss_unaided_observations"] == 10 * gap_s
-        assert np.abs(phi[t >= 10.0]).max() < 0.001, formula
+        inside = (t > 20.0) & (t < 20.0 + gap_s)
+        assert np.abs(phi[(t >= 10.0) & ~inside]).max() < 0.001, formula
+        assert np.abs(phi[inside]).max() < 0.002, formula
 
 
 def test_the_first_fix_error_does_not_pin_the_position_formula():

@@ -35,7 +35,7 @@ import copy
 import numpy as np
 
 from .conventions import DEG, cross, dcm_from_quat
-from .earth import OMEGA_IE, Site, ecef_from_geodetic, normal_gravity
+from .earth import OMEGA_IE, Site, ecef_from_geodetic, normal_gravity, radii
 
 GNSS_COLUMNS = 6
 """lat_deg, lon_deg, h_m, vE, vN, vU of the antenna (the pinned GNSS log's columns after t)."""
@@ -103,8 +103,9 @@ class GnssSource:
         self._first: tuple[np.ndarray, np.ndarray] | None = None    # (b, r) of the first epoch
         self._R_first: np.ndarray | None = None
         self._integrals = {name: RunningIntegral() for name in self._integral_names}
-        self._fixes = (np.zeros(1), np.zeros(1), np.zeros(1))
-        """(elapsed, lat, lon) of the latest call's epochs: where the navigation frame was between them."""
+        self._positions = np.zeros((0, 6))
+        """Rows (elapsed, lat, lon, h, V_E, V_N) of the latest samples with a fix (:meth:`follow`): where the
+        navigation frame is."""
 
     _integral_names: tuple[str, ...] = ("dR", "g_up")
     """The running integrals the source keeps (∫ΔR dt, ∫ g up dt, …), copied with the source."""
@@ -128,6 +129,17 @@ class GnssSource:
     def accumulate(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray) -> None:
         """Every integrated IMU sample (time since the start (N,) s, α (N, 3) m/s), before :meth:`vectors`."""
 
+    def follow(self, elapsed_s: np.ndarray, lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray,
+               V_en: np.ndarray) -> None:
+        """Position (rad, m) and east and north velocity (N, 2) m/s, NaN where none, at every integrated IMU sample
+        (s since the start), before :meth:`vectors`. :meth:`C_n_n0` takes the latest sample with a fix at or before
+        the time asked, so its answer for a sample does not depend on which samples came in the same call (live as
+        in a replay)."""
+        rows = np.column_stack((elapsed_s, lat, lon, height_m, V_en))
+        ok = np.isfinite(rows).all(axis=1)
+        if ok.any():   # with the previous call's last row, for the samples before this call's first fix
+            self._positions = np.concatenate((self._positions[-1:], rows[ok]))
+
     def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
                 aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(b (M, 3) in b0 axes, r (M, 3) in n0 axes) at M observation epochs ``elapsed_s`` (s since the start),
@@ -142,7 +154,6 @@ class GnssSource:
             self._omega_ie_n0 = self._C_e_n0 @ np.array([0.0, 0.0, OMEGA_IE])
             self.t_first = float(elapsed_s[0])
         C_n_n0 = self.C_n_n0_at(elapsed_s, lat, lon)
-        self._fixes = (elapsed_s, lat, lon)
         b, r = self._pairs(elapsed_s, alpha_b0, dcm_from_quat(q_b_b0), aid, C_n_n0)
         if self._first is None:
             self._first = (b[0].copy(), r[0].copy())
@@ -178,14 +189,17 @@ class GnssSource:
         return None
 
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:
-        """C_{n(t)}^{n0} at ``elapsed_s``: the position interpolated between the latest observation epochs
-        (held beyond them; the identity before the first)."""
-        if self._C_e_n0 is None:
+        """C_{n(t)}^{n0} at ``elapsed_s``: at the position of the latest sample with a fix at or before it
+        (:meth:`follow`: a sample's own, interpolated between fixes by the aiding track), carried on at its
+        velocity through a gap in the fixes; the identity before the first observation."""
+        if self._C_e_n0 is None or len(self._positions) == 0:
             return np.eye(3)
-        elapsed, lat, lon = self._fixes
-        # unwrapped: between fixes on either side of ±180° the position is near it, not half a world away
-        return self.C_n_n0_at(np.asarray(elapsed_s), np.interp(elapsed_s, elapsed, lat),
-                            np.interp(elapsed_s, elapsed, np.unwrap(lon)))
+        k = max(int(np.searchsorted(self._positions[:, 0], elapsed_s, side="right")) - 1, 0)
+        t, lat, lon, h, v_east, v_north = self._positions[k]
+        R_M, R_N = radii(lat)
+        dt = elapsed_s - t
+        return self.C_n_n0_at(np.asarray(elapsed_s), lat + v_north * dt / (R_M + h),
+                              lon + v_east * dt / ((R_N + h) * np.cos(lat)))
 
 
 class GnssVelocitySource(GnssSource):
