@@ -233,3 +233,18 @@ def test_a_flight_across_the_antimeridian_stays_exact_through_both_stages():
     t, phi = errors_deg(scenario, records)
     assert np.abs(phi[t >= 10.0]).max() < 0.001
     assert counters["gnss_pos_rejected"] == counters["gnss_vel_rejected"] == 0 and counters["gnss_pos_accepted"] > 0
+
+
+def test_a_5_hz_receiver_gives_one_observation_and_one_update_per_fix_and_stays_exact():
+    """GIVEN fixes at 5 Hz (half the 10-Hz observation grid) and exact sensors, THEN the coarse stage takes one
+    pair per fix (5 per second, not 10 interpolated from the same two fixes), the Kalman stage one velocity and one
+    position update per fix, and the heading is exact from 10 s on."""
+    scenario = replace(get_scenario("seed004-ideal").with_aid_rate(5.0), duration_s=40.0)
+    counters = {}
+    records = run_gnss(scenario, aiding={"gnss_handover_s": 20.0}, counters=counters)
+    n_obs = {r.t: r.n_obs for r in records}
+    assert (n_obs[10.0], n_obs[20.0], n_obs[40.0]) == (50, 100, 200)
+    assert counters["gnss_vel_accepted"] == counters["gnss_pos_accepted"] == 100      # the fixes of (20 s, 40 s]
+    assert counters["gnss_unaided_observations"] == 1                                  # 0.1 s: before the first fix
+    t, phi = errors_deg(scenario, records)
+    assert records[-1].phase == "aligned" and np.abs(phi[t >= 10.0]).max() < 0.001
