@@ -20,6 +20,7 @@ class KalmanStagePipeline(AlignmentPipeline):
     """An :class:`AlignmentPipeline` whose fine stage is an :class:`ErrorStateFilter`."""
 
     fine: ErrorStateFilter | None
+    checks_noise = False
     sigma_margin = 1.25
     """The reported σ is the filter's times this. The filters are Gaussian-calibrated (seed 002, 20 seeds from
     10 s: |error|/σ median 0.71, p99 2.3-2.5; seed 004, 40 seeds, 30-120 s, GNSS at 50/10/5/1 Hz: median 0.52-0.63,

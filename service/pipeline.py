@@ -17,6 +17,7 @@ from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, misalignment,
 from .align.disturbance import translation_residual_mps
 from .align.earth import Site
 from .align.fine import FineAlignment
+from .align.noise_check import VERDICT_BLOCKS, NoiseMeter
 from .align.observations import FixedSiteSource
 from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, bias_limit_rad
 from .align.solvers import CentredWahba, RecursiveK, make_solver
@@ -81,6 +82,9 @@ class AlignmentPipeline:
     """Aiding values per sample that :meth:`process` takes (0: none; aided pipelines set it)."""
     checks_translation = True
     """Whether a base that translates is a disturbance (not for a base meant to move)."""
+    checks_noise = True
+    """Whether the data's own noise is measured against the datasheet's and σ follows the louder (a fixed base: a
+    moving vehicle's vibration and manoeuvres are no sensor noise, and its σ comes from fits and filters)."""
 
     def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
                  live: bool = False, initial_q_b_n: np.ndarray | None = None) -> None:
@@ -93,6 +97,9 @@ class AlignmentPipeline:
         self.period_s = config.output.period_s
         self.site = site
         self.grade = grade_from(config, datasheet)
+        self.sigma_grade = self.grade   # the datasheet's, until the data show more noise (service/align/noise_check.py)
+        self.noise = NoiseMeter(self.sample_period_s) if self.checks_noise else None
+        self.noise_unchecked = self.noise is not None   # σ still waits for the meter's first verdict
         self.block_samples = max(1, round(f.control_interval_s * rate_hz))
         self._live = live
         self._with_fine = f.enabled or initial_q_b_n is not None
@@ -112,6 +119,7 @@ class AlignmentPipeline:
         """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
         self.coarse = self._make_coarse()
         self.fine = self._make_fine()
+        self._apply_sigma_grade()
         self._alpha_step = np.zeros(3)
         self._t_step = t_start
         self._step_epoch = -1.0   # the newest aiding epoch at the last control step
@@ -217,11 +225,32 @@ class AlignmentPipeline:
             folded = _fold_until(solver, due, dK, trace_R, folded, end)
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
                                None if aid is None else aid[end], None if aid_epoch is None else aid_epoch[end])
+            if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
+                self._measure_noise(samples[end + 1 - M:end + 1])
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
                     self._process_blocks(samples[end + 1:], records)
                 return
+
+    def _measure_noise(self, block: np.ndarray) -> None:
+        """Feed one block's increments to the noise meter; σ takes the data's noise where it is far louder than
+        the datasheet's, and the operator is told once."""
+        self.noise.feed(block[:, 1:7])
+        if self.noise.blocks % VERDICT_BLOCKS:
+            return
+        verdict = self.noise.verdict(self.grade)
+        self.noise_unchecked = self.noise_unchecked and verdict is None
+        if verdict is not None and verdict.grade != self.sigma_grade:
+            self.sigma_grade = verdict.grade
+            self._apply_sigma_grade()
+            self.last_notice = self.last_notice or verdict.notice
+
+    def _apply_sigma_grade(self) -> None:
+        """The stages report σ with :attr:`sigma_grade` (their estimates keep the datasheet's weights and gains)."""
+        self.coarse.sigma_grade = self.sigma_grade
+        if isinstance(self.fine, FineAlignment):
+            self.fine.loops.grade = self.sigma_grade
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
         """The aiding values of the samples (N, ``aid_width``), None without aiding."""
@@ -309,9 +338,10 @@ class AlignmentPipeline:
         f = self.config.fine
         if f.handover == "time":
             return elapsed_s >= f.handover_time_s
-        if self.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s:
+        if self.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s or self.noise_unchecked:
             # a datasheet that claims far too little noise would hand over at the first observation, before the
-            # heading is known at all, and the loops cannot pull in a large error
+            # heading is known at all, and the loops cannot pull in a large error; nor may the loops start from a
+            # σ the data's own noise has not checked yet (they carry it on)
             return False
         # the noise part only: the bias floor stays whatever the stage, and above the threshold
         # for a poor gyro it would keep the loops from ever starting

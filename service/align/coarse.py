@@ -57,6 +57,7 @@ class InertialCoarseAlignment:
             raise ValueError("obs_interval_s must be at least one sample period")
         self.source = source
         self.grade = grade
+        self.sigma_grade = grade   # the grade of the reported σ: the datasheet's, or the noise the data show
         self.solver = solver
         self.sample_period_s = sample_period_s
         self.obs_interval_s = obs_interval_s
@@ -146,7 +147,7 @@ class InertialCoarseAlignment:
         """Reported 1-sigma (heading, level) in degrees after ``elapsed_s`` of alignment."""
         if self.solver.n_obs == 0:
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
-        sigma = inertial_alignment_sigma(self.grade, self._lat, self._gravity, elapsed_s)
+        sigma = inertial_alignment_sigma(self.sigma_grade, self._lat, self._gravity, elapsed_s)
         return sigma.heading_deg, sigma.level_deg
 
     def solution_at(self, t: float, q_b_b0: np.ndarray) -> AttitudeSolution:
