@@ -115,8 +115,8 @@ class AidingTrack:
             if last is not None:
                 bridged = float(t - last <= self.gap_s(t - last))
                 self.counters.gaps += int(not bridged)
-                self._intervals = np.roll(self._intervals, -1)
-                self._intervals[-1] = t - last
+                # a ring: the median does not care about the order
+                self._intervals[(self.counters.epochs - 1) % INTERVAL_HISTORY] = t - last
             if self._n == len(self._epochs):
                 self._epochs = np.concatenate((self._epochs, np.empty_like(self._epochs)))[:max(self.capacity, 1)]
             self._epochs[self._n, :_VALUES] = t, self.counters.epochs, bridged

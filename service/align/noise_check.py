@@ -38,11 +38,9 @@ quiet (a strategic-grade gyro is 3e-8 rad/√s, 0.0001°/√h)."""
 
 @dataclass(frozen=True, slots=True)
 class NoiseVerdict:
-    """The measured white-noise densities (rad/√s, m/s/√s) and the grade σ should use (the datasheet's, with a
-    measured figure in place of a stated one it exceeds by more than :data:`ALARM_FACTOR`)."""
+    """The grade σ should use (the datasheet's, with a measured figure in place of a stated one it exceeds by more
+    than :data:`ALARM_FACTOR`) and what to tell the operator (None: nothing)."""
 
-    gyro_arw_rad_rts: float
-    acc_vrw_ms_rts: float
     grade: SensorGrade
     notice: str | None
 
@@ -99,7 +97,7 @@ class NoiseMeter:
                                                             ("acc_vrw_ms_rts", acc, stated.acc_vrw_ms_rts))
                   if value > max(ALARM_FACTOR * claimed, RESOLUTION)}
         if not louder:
-            return NoiseVerdict(gyro, acc, stated, None)
+            return NoiseVerdict(stated, None)
         parts = []
         if "gyro_arw_rad_rts" in louder:
             parts.append(f"gyro noise {gyro / DRH_TO_RRS:.3g}°/√h, {gyro / stated.gyro_arw_rad_rts:.3g}× the "
@@ -109,4 +107,4 @@ class NoiseMeter:
                          f"datasheet's {stated.acc_vrw_ms_rts / UG_TO_MS2:.3g} µg/√Hz (acc_vrw_ug_rthz)")
         notice = (f"the data show {' and '.join(parts)}: σ uses the measured figure; check [sensor] or the log's "
                   "datasheet keys (or the base vibrates)")
-        return NoiseVerdict(gyro, acc, replace(stated, **louder), notice)
+        return NoiseVerdict(replace(stated, **louder), notice)
