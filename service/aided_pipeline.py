@@ -70,14 +70,10 @@ class VelocityAidedPipeline(KalmanStagePipeline):
         if source.relevelling and source.step_relevel(1):
             self._window_solved = source.relevel_window_full
         if self.fine is not None and self._window_solved and aided:
-            solution = self.coarse.solution_at(t_end, q_b_b0)
-            limit = self.config.aiding.handover_heading_sigma_deg
-            if solution.heading_sigma_deg > limit:
-                # a linear filter started several degrees off turns overconfident (seed-003 at 20 m/s: a 4°-σ
-                # window left 3-5° errors at σ 0.3°); the window is all there is, so the coarse stage stays
-                self.last_notice = self.last_notice or (f"the {self.config.aiding.window_s:g}-s window gives heading σ "
-                                    f"{solution.heading_sigma_deg:.2f}° > aiding.handover_heading_sigma_deg "
-                                    f"{limit:g}°: no fine stage; lengthen aiding.window_s")
+            # the window is all there is: above the limit the coarse stage stays
+            solution = self._handover_solution(t_end, q_b_b0, (f"the {self.config.aiding.window_s:g}-s window gives ",
+                                                               ": no fine stage; lengthen aiding.window_s"))
+            if solution is None:
                 return
             C_b_n = dcm_from_quat(solution.q_b_n)
             result = source.result

@@ -95,12 +95,9 @@ class GnssAidedPipeline(GyroRateAidPipeline):
         ad = self.config.aiding
         if not np.isfinite(aid).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:
             return
-        solution = self.coarse.solution_at(t_end, q_b_b0)
-        if solution.heading_sigma_deg > ad.handover_heading_sigma_deg:
-            # a linear filter started several degrees off turns overconfident: the coarse stage goes on
-            self.last_notice = self.last_notice or (
-                f"heading σ {solution.heading_sigma_deg:.2f}° > aiding.handover_heading_sigma_deg "
-                f"{ad.handover_heading_sigma_deg:g}° at {elapsed_s:.0f} s: the Kalman stage waits (manoeuvre)")
+        solution = self._handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
+                                                                  "(manoeuvre)"))
+        if solution is None:
             return
         C_b_n = dcm_from_quat(solution.q_b_n)
         antenna = np.r_[aid[:2] * DEG, aid[2]]

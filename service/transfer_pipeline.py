@@ -156,8 +156,8 @@ class TransferPipeline(GyroRateAidPipeline):
         # the switch looks at the fit's noise alone (the bias floor stays until the Kalman stage separates it)
         due = elapsed_s + 1e-9 >= ad.master_handover_s if ad.master_handover_s > 0.0 else (
             max(noise) <= ad.master_handover_sigma_deg * DEG)
-        solution = self.coarse.solution_at(t_end, q_b_b0)
-        if not due or solution.heading_sigma_deg > ad.handover_heading_sigma_deg:
+        solution = self._handover_solution(t_end, q_b_b0, None) if due else None
+        if solution is None:
             return
         attitude: MasterAttitude = self.fine.measurements["master_att"]
         attitude.M_ref = self.coarse.mounting

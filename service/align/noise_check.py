@@ -6,7 +6,7 @@ the errors are the data's. The data measure their own noise: white noise of dens
 increments over a sample period dt with per-sample standard deviation n √dt, and the K-th
 difference of a white sequence has C(2K, K) times its variance, while a smooth motion's K-th
 difference shrinks as (ω dt)^K. At K = 4 a ship's swing or a turntable's sway at 200 Hz leaves
-1e-13 rad against 2e-9 rad of a navigation-grade gyro's noise (measured on the seed-000 swing:
+under 1e-12 rad against 2e-9 rad of a navigation-grade gyro's noise (measured on the seed-000 swing:
 0.99 of the stated density for both sensors). Each control block gives one mean square per sensor;
 the estimate is the median over the last :data:`BLOCKS_HELD` blocks, so a short burst of motion (a
 turntable step, a knock) does not move it. Memory is O(1).
