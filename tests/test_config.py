@@ -9,6 +9,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from sinsalign.service.align.solvers import SOLVERS
 from sinsalign.service.config import (
     AlignmentConfig,
     Config,
@@ -19,7 +20,7 @@ from sinsalign.service.config import (
     load_config,
 )
 
-from sinsalign.cli import main
+from sinsalign.cli import build_parser, main
 
 GOOD_TOML = """\
 # a comment
@@ -281,3 +282,10 @@ def test_observation_interval_shorter_than_a_sample_is_a_config_error(capsys: py
                  "--no-progress"])
     assert code == 2
     assert "alignment.obs_interval_s" in capsys.readouterr().err
+
+
+def test_the_cli_offers_every_solver_the_configuration_takes() -> None:
+    """The CLI spells the solver names out (its --help must not import numpy); they must be the solvers module's."""
+    replay = build_parser()._subparsers._group_actions[0].choices["replay"]
+    (option,) = [a for a in replay._actions if "--solver" in a.option_strings]
+    assert tuple(option.choices) == SOLVERS
