@@ -150,6 +150,24 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
 
 
 # ---- aided modes: a moving vehicle, its aiding late -------------------------------------------
+def test_the_daemon_tells_when_the_data_are_far_noisier_than_its_datasheet(tmp_path, pty_pair, running):
+    """GIVEN [sensor] figures ten times quieter than the IMU on the line (15 s of the seed-000 swing as serial
+    frames), THEN the status's last_error names the noise the data show and says σ takes it (the pipeline's
+    verdict after 10 s, tests/test_noise_check.py), and nothing counts as a fault."""
+    scenario = get_scenario("seed000-swing")
+    sections = daemon_sections(scenario)
+    sections["sensor"] = {**sections["sensor"], "acc_vrw_ug_rthz": sections["sensor"]["acc_vrw_ug_rthz"] / 10}
+    run = running(**sections)
+    chunk = simulated_run(scenario, 15.0)
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t, chunk.dtheta, chunk.dv, 0))
+    wait_until(lambda: run.daemon.counters.samples_used == len(chunk.t))
+    time.sleep(0.3)   # a status period
+    run.stop()
+    status = run.subscriber.status[-1]
+    assert "accelerometer noise" in status["last_error"] and "σ uses the measured figure" in status["last_error"]
+    assert messages.faults(status["counters"]) == {}
+
+
 def simulated_run(scenario: Scenario, seconds: float) -> ImuChunk:
     """Seed 1 of ``scenario``: ``seconds`` of IMU samples in one chunk (t in s, Δθ in rad, Δv in m/s)."""
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1,
