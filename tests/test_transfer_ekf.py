@@ -9,8 +9,8 @@ rock's axis stays unknown. Its Jacobians are the quaternion products' derivative
 import numpy as np
 import pytest
 from sinsalign.service.align.conventions import quat_normalize
-from sinsalign.service.align.transfer_ekf import master_quaternion, rotate, rotate_jacobian
 from sinsalign.tools.evaluate_transfer import ekf_run_once, mounted_scenario
+from sinsalign.tools.transfer_ekf import master_quaternion, rotate, rotate_jacobian
 
 
 def numeric_jacobian(f, q, h=1e-7):

@@ -7,7 +7,7 @@ repeats epochs and comes late. Errors are the slave's misalignment φ = (φ_E, �
 truth (φ_U ≈ heading error) and the mounting estimate's error, RMS over the seeds, in degrees.
 
 :func:`phase1_comparison` sets our closed-form phase 1 (the pipeline with the Kalman stage off) against the
-seed's own phase 1, the additive-quaternion EKF (service/align/transfer_ekf.py), on the seed's 20°/20°/20°
+seed's own phase 1, the additive-quaternion EKF (tools/transfer_ekf.py), on the seed's 20°/20°/20°
 mounting and on 60°/−45°/120°.
 """
 from __future__ import annotations
@@ -18,7 +18,6 @@ from pathlib import Path
 
 import numpy as np
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
-from sinsalign.service.align.transfer_ekf import EkfSettings, run_transfer_ekf
 from sinsalign.service.config import Config, config_from_mapping
 
 from .evaluate import (
@@ -35,6 +34,7 @@ from .evaluate_gnss import plot_heading_runs, summed_counters
 from .sim.aiding import master_epochs
 from .sim.imu import simulate
 from .sim.scenarios import SEED002_MOUNT_DEG, Scenario, get_scenario, seed002_flight
+from .transfer_ekf import EkfSettings, run_transfer_ekf
 
 SCENARIO = "seed002"
 AT_S = (10.0, 60.0)
@@ -124,7 +124,7 @@ def mounted_scenario(mount_deg: Sequence[float] = SEED002_MOUNT_DEG, name: str =
 
 def ekf_run_once(scenario: Scenario, seed: int, config: Config | None = None,
                  velocity_matching: bool = True) -> RunResult:
-    """The seed's phase 1 (:func:`~sinsalign.service.align.transfer_ekf.run_transfer_ekf`) over one simulated seed,
+    """The seed's phase 1 (:func:`~sinsalign.tools.transfer_ekf.run_transfer_ekf`) over one simulated seed,
     as :func:`~.evaluate.run_once` gives the pipeline's: φ at the configured output epochs, σ from the filter's
     covariance (``converged`` all False: the filter has no such test), the final mounting's error. The filter
     takes the master's noise as the configuration states it."""

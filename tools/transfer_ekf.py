@@ -39,12 +39,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-
-from .conventions import cross, dcm_from_quat, quat_from_rotvec, skew
-from .earth import earth_rate_n, normal_gravity, transport_rate_n
-from .sensor_model import SensorGrade
-from .strapdown import InertialIntegrator
-from .transfer import MASTER_COLUMNS
+from sinsalign.service.align.conventions import cross, dcm_from_quat, quat_from_rotvec, skew
+from sinsalign.service.align.earth import earth_rate_n, normal_gravity, transport_rate_n
+from sinsalign.service.align.sensor_model import SensorGrade
+from sinsalign.service.align.strapdown import InertialIntegrator
+from sinsalign.service.align.transfer import MASTER_COLUMNS
 
 ATT, VEL, GYRO_BIAS, ACC_BIAS, MOUNT = slice(0, 4), slice(4, 7), slice(7, 10), slice(10, 13), slice(13, 17)
 N_STATES = 17
