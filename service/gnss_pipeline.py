@@ -40,7 +40,7 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
     def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
                 aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.source.accumulate(elapsed_s, alpha)
-        self.source.follow(elapsed_s, aid[:, 0] * DEG, aid[:, 1] * DEG, aid[:, 2], aid[:, 3:5])
+        self.source.follow(elapsed_s, aid)
         return super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
 
     def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

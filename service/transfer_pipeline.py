@@ -42,7 +42,7 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
     def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
                 aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.source.mounting_estimate = self.mounting     # the lever arm in the slave's axes
-        self.source.velocity.follow(elapsed_s, np.radians(aid[:, 7]), np.radians(aid[:, 8]), aid[:, 9], aid[:, 4:6])
+        self.source.follow(elapsed_s, aid)
         due, outer, pairs = super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
         return np.repeat(due, 2), outer, pairs            # two pairs per epoch
 

@@ -129,13 +129,12 @@ class GnssSource:
     def accumulate(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray) -> None:
         """Every integrated IMU sample (time since the start (N,) s, α (N, 3) m/s), before :meth:`vectors`."""
 
-    def follow(self, elapsed_s: np.ndarray, lat: np.ndarray, lon: np.ndarray, height_m: np.ndarray,
-               V_en: np.ndarray) -> None:
-        """Position (rad, m) and east and north velocity (N, 2) m/s, NaN where none, at every integrated IMU sample
-        (s since the start), before :meth:`vectors`. :meth:`C_n_n0` takes the latest sample with a fix at or before
-        the time asked, so its answer for a sample does not depend on which samples came in the same call (live as
-        in a replay)."""
-        rows = np.column_stack((elapsed_s, lat, lon, height_m, V_en))
+    def follow(self, elapsed_s: np.ndarray, aid: np.ndarray) -> None:
+        """The fixes (aid columns as :meth:`vectors` takes them, NaN where none) at every integrated IMU sample (s
+        since the start), before :meth:`vectors`. :meth:`C_n_n0` takes the latest sample with a fix at or before the
+        time asked, so its answer for a sample does not depend on which samples came in the same call (live as in a
+        replay)."""
+        rows = np.column_stack((elapsed_s, aid[:, :2] * DEG, aid[:, 2:5]))   # t, lat, lon (rad), h, V_E, V_N
         ok = np.isfinite(rows).all(axis=1)
         if ok.any():   # with the previous call's last row, for the samples before this call's first fix
             self._positions = np.concatenate((self._positions[-1:], rows[ok]))

@@ -64,6 +64,15 @@ class MasterSource:
         clone.velocity = copy.copy(self.velocity)
         return clone
 
+    @staticmethod
+    def _gnss_columns(aid: np.ndarray) -> np.ndarray:
+        """The master's position and velocity, and the slave's gyro rate, in the VIF source's aid columns."""
+        return np.column_stack((aid[:, 7:10], aid[:, 4:7], aid[:, 10:13]))
+
+    def follow(self, elapsed_s: np.ndarray, aid: np.ndarray) -> None:
+        """The master's positions at every integrated sample (:meth:`GnssSource.follow`)."""
+        self.velocity.follow(elapsed_s, self._gnss_columns(aid))
+
     def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
                 aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(b (2M, 3), r (2M, 3)): at each of M epochs the velocity pair (m/s) then the attitude pair (rad);
@@ -74,8 +83,7 @@ class MasterSource:
         if len(elapsed_s) == 0:
             return np.empty((0, 3)), np.empty((0, 3))
         self.velocity.lever_b = -self.mounting_estimate.T @ self.lever_m
-        b_v, r_v = self.velocity.vectors(elapsed_s, alpha_b0, q_b_b0,
-                                         np.column_stack((aid[:, 7:10], aid[:, 4:7], aid[:, 10:13])))
+        b_v, r_v = self.velocity.vectors(elapsed_s, alpha_b0, q_b_b0, self._gnss_columns(aid))
         lat, lon = np.radians(aid[:, 7]), np.radians(aid[:, 8])
         P = self.velocity.C_n_n0_at(elapsed_s, lat, lon) @ dcm_from_quat(aid[:, :4])
         S = dcm_from_quat(q_b_b0)
