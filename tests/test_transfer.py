@@ -109,6 +109,17 @@ def test_a_stream_one_sample_at_a_time_gives_the_same_bits_as_one_chunk():
     assert [r.to_json() for r in whole] == [r.to_json() for r in pieces]
 
 
+def test_phase_1_records_inside_a_control_step_are_the_same_live_as_in_one_chunk():
+    """GIVEN output epochs that fall inside a 0.5-s control step (fine stage off: phase 1 throughout), THEN a
+    stream 7 samples at a time gives the same records as one chunk: the record computed on a scratch copy of the
+    grouped solver folds into the copy's groups, not the pipeline's (before, it folded the pairs twice)."""
+    scenario = replace(get_scenario("seed002"), duration_s=6.0)
+    overrides = {"fine": {"enabled": False, "control_interval_s": 0.5}, "output": {"period_s": 0.2}}
+    whole, _ = run_transfer(scenario, overrides=overrides)
+    pieces, _ = run_transfer(scenario, overrides=overrides, piece=7)
+    assert len(whole) == 30 and [r.to_json() for r in whole] == [r.to_json() for r in pieces]
+
+
 def test_a_master_log_replays_with_the_noise_it_states(tmp_path):
     scenario = replace(get_scenario("seed002-ideal"), duration_s=12.0)
     files = write_simulation(scenario, 1, tmp_path)

@@ -24,6 +24,7 @@ and r in navigation axes A = C_n^b, so the Hamilton quaternion of C_b^n is [q_4,
 """
 from __future__ import annotations
 
+import copy
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -311,6 +312,14 @@ class GroupedWahba:
         self.rho = 1.0
         self.trace_P = float("nan")
         self.rejected = 0
+
+    def __copy__(self) -> GroupedWahba:
+        # the coarse stage's scratch copy folds into its groups: they must be its own (each copies cheaply, its
+        # fold assigns new arrays)
+        clone = object.__new__(GroupedWahba)
+        clone.__dict__.update(self.__dict__)
+        clone.groups = [copy.copy(g) for g in self.groups]
+        return clone
 
     @property
     def n_obs(self) -> int:
