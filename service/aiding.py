@@ -23,11 +23,15 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..protocol.aiding_log import KINDS
 from ..protocol.counters import Counters
+
+if TYPE_CHECKING:
+    from .config import AidingConfig
 
 TIME_TOLERANCE_S = 1e-6
 """Time stamps travel as integer ns or decimal text: an IMU sample this close to an epoch is at it."""
@@ -90,6 +94,11 @@ class AidingTrack:
         return cls(len(values), latency_s, max_gap_s,
                    longitude_column=values.index("lon_deg") if "lon_deg" in values else None,
                    quaternion_column=values.index("qw") if "qw" in values else None)
+
+    @classmethod
+    def configured(cls, kind: str, aiding: AidingConfig) -> AidingTrack:
+        """:meth:`for_kind` with the configuration's latency of that kind and ``max_gap_s``."""
+        return cls.for_kind(kind, getattr(aiding, f"{kind}_latency_s"), aiding.max_gap_s)
 
     def push(self, rows: np.ndarray) -> None:
         """Epochs (N, 1 + width): time stamp (s, the stream's clock) then the values."""

@@ -80,8 +80,7 @@ class Daemon:
         self.aid_kinds = config.aiding.inputs
         self.pipeline = self._new_pipeline()
         ad = config.aiding
-        self.tracks = {kind: AidingTrack.for_kind(kind, getattr(ad, f"{kind}_latency_s", 0.0), ad.max_gap_s)
-                       for kind in self.aid_kinds}
+        self.tracks = {kind: AidingTrack.configured(kind, ad) for kind in self.aid_kinds}
         # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
         self.aid_kind: str | None = self.aid_kinds[0] if self.aid_kinds else None
         self._wait = None if self.aid_kind is None else AidingWait(self.tracks[self.aid_kind], ad.max_wait_s)

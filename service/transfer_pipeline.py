@@ -67,12 +67,16 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
             self._covariance = (self.solver.n_obs, self.solver.covariance())
         return self._covariance[1]
 
+    def fit_sigma_rad(self) -> float | None:
+        """The reported 1-sigma (rad) of the fit's mounting, its largest axis; None before the fit has a covariance."""
+        covariance = self.fit_covariance()
+        return None if covariance is None else PHASE1_SIGMA_FACTOR * float(np.sqrt(np.max(np.diag(covariance))))
+
     @property
     def resolved(self) -> bool:
         """Whether the fit has fixed every axis of the mounting (its heading σ within :data:`LINEAR_LIMIT_DEG`)."""
-        covariance = self.fit_covariance()
-        return covariance is not None and PHASE1_SIGMA_FACTOR * np.sqrt(np.max(np.diag(covariance))) <= (
-            LINEAR_LIMIT_DEG * DEG)
+        sigma = self.fit_sigma_rad()
+        return sigma is not None and sigma <= LINEAR_LIMIT_DEG * DEG
 
     def best_mounting(self) -> tuple[np.ndarray, float | None]:
         """(C_bs^bm, its 1-sigma in rad if it is the nominal one): the fit's once resolved, else the nominal."""
@@ -165,13 +169,12 @@ class TransferPipeline(GyroRateAidPipeline):
         velocity: GnssVelocity = self.fine.measurements["master_vel"]
         velocity.lever_b = -attitude.M_ref.T @ np.array(ad.master_lever_m)
         heading_rad, level_rad = solution.heading_sigma_deg * DEG, solution.level_sigma_deg * DEG
-        attitude.mount_sigma_rad = max(heading_rad, level_rad)
         C_b_n = dcm_from_quat(aid[:4]) @ attitude.M_ref         # the master's attitude now, through the mounting
         position = np.r_[np.radians(aid[7:9]), aid[9]]
         V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], velocity.lever_b)
         self.fine.start(C_b_n, C_b_b0, V_n, position, level_rad, heading_rad,
                         HANDOVER_SIGMA_FACTOR * ad.master_vel_std_mps, velocity_from_attitude=False)
-        self._correlate_handover(C_b_n, *noise)
+        self._correlate_handover(C_b_n, *noise)   # the φ, μ and ∇ prior: it replaces start's diagonal one
 
     def _correlate_handover(self, C_b_n: np.ndarray, heading_noise_rad: float, level_noise_rad: float) -> None:
         """Phase 1's errors as the filter must start with them: one error, three views.
@@ -212,10 +215,8 @@ class TransferPipeline(GyroRateAidPipeline):
         nominal, nominal_sigma = coarse.best_mounting()
         if nominal_sigma is not None:
             return nominal, nominal_sigma / DEG
-        covariance = coarse.fit_covariance()
-        sigma = SIGMA_UNKNOWN_DEG if covariance is None else min(
-            PHASE1_SIGMA_FACTOR * float(np.sqrt(np.max(np.diag(covariance)))) / DEG, SIGMA_UNKNOWN_DEG)
-        return coarse.mounting, sigma
+        sigma = coarse.fit_sigma_rad()
+        return coarse.mounting, SIGMA_UNKNOWN_DEG if sigma is None else min(sigma / DEG, SIGMA_UNKNOWN_DEG)
 
     def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                       coarse: InertialCoarseAlignment) -> ResultRecord:

@@ -95,7 +95,7 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
             config = replace(config, aiding=replace(config.aiding, odo_std_mps=scenario.odometer.noise_mps))
         # the aided pipeline, its readings through the same aiding track as a log's
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), [kind], live)
-        track = AidingTrack.for_kind(kind, getattr(config.aiding, f"{kind}_latency_s"), config.aiding.max_gap_s)
+        track = AidingTrack.configured(kind, config.aiding)
         feed = AidingFeed(track, iter([epochs]))
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,

@@ -43,8 +43,7 @@ def open_aids(aids: dict[str, str], config: Config) -> tuple[Config, dict[str, A
     feeds = {}
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
-        feeds[kind] = AidingFeed(AidingTrack.for_kind(kind, getattr(config.aiding, f"{kind}_latency_s"),
-                                                      config.aiding.max_gap_s), log.blocks())
+        feeds[kind] = AidingFeed(AidingTrack.configured(kind, config.aiding), log.blocks())
         stated = {}
         if kind == "odo":
             stated = {"odo_std_mps": log.std("vel_std_mps")}

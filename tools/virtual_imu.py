@@ -19,7 +19,7 @@ import select
 import time
 import tty
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from sinsalign.protocol.serial_frame import encode_aiding, encode_imu
@@ -65,11 +65,14 @@ class AidingPlayback:
     epochs: np.ndarray
     late_s: float = 0.0
     sent: int = 0
+    _due_s: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._due_s = self.epochs[:, 0] + self.late_s   # once: due() runs before every IMU frame
 
     def due(self, t: float) -> bytes:
         """The frames of the epochs not sent yet that are due before an IMU frame at time t (s)."""
-        end = int(np.searchsorted(self.epochs[:, 0] + self.late_s, t, side="right"))
-        return self._frames(end)
+        return self._frames(int(np.searchsorted(self._due_s, t, side="right")))
 
     def rest(self) -> bytes:
         """The frames of every epoch not sent yet (after the last IMU frame)."""
