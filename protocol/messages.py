@@ -28,7 +28,8 @@ NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_publish
                         "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames",
                         "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
                         "gnss_vel_accepted", "gnss_pos_accepted", "master_epochs", "master_unaided_queries",
-                        "master_vel_accepted", "master_att_accepted"})
+                        "master_vel_accepted", "master_att_accepted", "odo_observations_awaiting_aid",
+                        "gnss_observations_awaiting_aid", "master_observations_awaiting_aid"})
 """Status counters that count work, not faults; every other counter counts a drop or a fault, but for SCREENED."""
 SCREENED = frozenset({"odo_rejected", "odo_outlier_pairs", "gnss_coarse_rejected", "gnss_vel_rejected",
                       "gnss_pos_rejected", "master_vel_rejected", "master_att_rejected"})

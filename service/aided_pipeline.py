@@ -32,6 +32,7 @@ class VelocityAidedPipeline(KalmanStagePipeline):
     """Alignment of a moving base with body velocity V^b (3 aiding values per sample, m/s)."""
 
     aid_width = 3
+    aid_kind = "odo"
     checks_translation = False
 
     def _make_coarse(self) -> InertialCoarseAlignment:
@@ -87,11 +88,11 @@ class VelocityAidedPipeline(KalmanStagePipeline):
                             else None)
 
     def aiding_counters(self) -> dict[str, int]:
-        """What the estimators made of the aiding: observations without it, multistage pairs left out as
+        """What the estimators made of the aiding: observations awaiting or without it, multistage pairs left out as
         outliers, and the Kalman stage's accepted and gated-out odometer readings."""
         result = self.coarse.source.result
-        return {"odo_unaided_observations": self.coarse.unaided_observations,
-                "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum()), **self.filter_counters()}
+        return {**super().aiding_counters(), "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum()),
+                **self.filter_counters()}
 
 
 AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline,

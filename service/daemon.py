@@ -49,6 +49,11 @@ AIDING_INBOX_LIMIT = 10_000
 MSGPACK = zenoh.Encoding("application/msgpack")
 
 
+def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
+    """Counters ``before`` a restart plus the new pipeline's ``now``, key by key (a key in either)."""
+    return {**before, **{key: before.get(key, 0) + count for key, count in now.items()}}
+
+
 @dataclass(slots=True)
 class SampleCounters(Counters):
     """Checks on decoded samples, whatever their input."""
@@ -91,6 +96,7 @@ class Daemon:
         self.last_error: str | None = None
         self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None, "aiding": None}
         self._disturbances_before = 0
+        self._aiding_before: dict[str, int] = {}   # the aiding counters of the pipelines before restarts
         self.last_record: ResultRecord | None = None
         self.t_last: float | None = None
         self._started = time.monotonic()
@@ -242,6 +248,7 @@ class Daemon:
                     self._error(segment.reason)
                     records += self._feed(None, everything=True)   # what waited for aiding, to the old pipeline
                     self._disturbances_before += self.pipeline.disturbances
+                    self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
                     self.pipeline = self._new_pipeline()
                 t = segment.rows[:, 0]
                 self.counters.samples_used += len(t)
@@ -310,7 +317,8 @@ class Daemon:
     def all_counters(self) -> dict[str, int]:
         counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
                     "disturbances": self._disturbances_before + self.pipeline.disturbances,
-                    **self.zenoh_sequence.counters("zenoh_seq_"), **self.pipeline.aiding_counters()}
+                    **self.zenoh_sequence.counters("zenoh_seq_"),
+                    **summed(self._aiding_before, self.pipeline.aiding_counters())}
         for kind, track in self.tracks.items():
             counters |= track.counters.as_dict(f"{kind}_")
         if self.serial is not None:
@@ -324,11 +332,14 @@ class Daemon:
             health = "starting" if time.monotonic() - self._started < NO_INPUT_S else "no_input"
         elif time.monotonic() - self._last_input > NO_INPUT_S:
             health = "no_input"
-        else:
+        else:   # a receiver before its first fix is no fault: the aided alignment has not begun
             rose = errors > messages.fault_count(self._counters_at_status)
-            health = "degraded" if rose or messages.screening_alarm(self._counters_at_status, counters) else "ok"
+            health = ("degraded" if rose or messages.screening_alarm(self._counters_at_status, counters)
+                      else "starting" if self.pipeline.awaiting_aid else "ok")
         self._counters_at_status = counters
         last_error = self.last_error or (self.serial.last_error if self.serial is not None else None)
+        if last_error is None and self.pipeline.awaiting_aid:
+            last_error = f"waiting for the first {self.aid_kind} epoch: the aided alignment starts with it"
         phase = self.last_record.phase if self.last_record is not None else "coarse"
         return messages.status_message(self.keys.unit, time.monotonic() - self._started, health, phase, self.t_last,
                                        last_error, counters)

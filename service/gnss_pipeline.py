@@ -62,6 +62,7 @@ class GnssAidedPipeline(GyroRateAidPipeline):
     """Alignment in flight with GNSS fixes (6 aiding values per sample: lat_deg, lon_deg, h_m, V^n)."""
 
     aid_width = GNSS_COLUMNS
+    aid_kind = "gnss"
     checks_translation = False
 
     def _make_coarse(self) -> InertialCoarseAlignment:
@@ -109,9 +110,8 @@ class GnssAidedPipeline(GyroRateAidPipeline):
                         velocity_from_attitude=False, position_sigma_m=HANDOVER_SIGMA_FACTOR * ad.gnss_pos_std_m)
 
     def aiding_counters(self) -> dict[str, int]:
-        """What the estimators made of the fixes: coarse observations without one, coarse pairs screened
+        """What the estimators made of the fixes: coarse observations awaiting or without one, coarse pairs screened
         out (glitches) and screens reopened after a run of rejections, and the Kalman stage's accepted
         and gated-out velocity and position fixes."""
-        return {"gnss_unaided_observations": self.coarse.unaided_observations,
-                "gnss_coarse_rejected": self.coarse.solver.rejected,
+        return {**super().aiding_counters(), "gnss_coarse_rejected": self.coarse.solver.rejected,
                 "gnss_coarse_reopened": self.coarse.solver.reopened, **self.filter_counters()}

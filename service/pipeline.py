@@ -79,6 +79,7 @@ class AlignmentPipeline:
     """
 
     aid_width = 0
+    aid_kind = ""   # the aiding kind of the pipeline's aid columns (``[aiding]`` and status counter prefix)
     """Aiding values per sample that :meth:`process` takes (0: none; aided pipelines set it)."""
     checks_translation = True
     """Whether a base that translates is a disturbance (not for a base meant to move)."""
@@ -128,8 +129,18 @@ class AlignmentPipeline:
         self._next_check_s = self.config.disturbance.check_interval_s
 
     def aiding_counters(self) -> dict[str, int]:
-        """What the estimators made of aiding inputs (none here; aided pipelines count theirs)."""
-        return {}
+        """What the estimators made of the aiding (none without): coarse observations due before the aid's first
+        value (``<kind>_observations_awaiting_aid``, a wait) and after it without one (``…_unaided_observations``,
+        a dropout); aided pipelines add their estimators' counts."""
+        if not self.aid_width:
+            return {}
+        return {f"{self.aid_kind}_observations_awaiting_aid": self.coarse.observations_awaiting_aid,
+                f"{self.aid_kind}_unaided_observations": self.coarse.unaided_observations}
+
+    @property
+    def awaiting_aid(self) -> bool:
+        """An aided pipeline whose aid has not given its first value yet: the alignment has not started."""
+        return bool(self.aid_width) and not self.coarse.aid_started
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment

@@ -123,6 +123,7 @@ class TransferPipeline(GyroRateAidPipeline):
     quaternion of C_bm^n, V^n ENU m/s, lat_deg, lon_deg, h_m)."""
 
     aid_width = MASTER_COLUMNS
+    aid_kind = "master"
     checks_translation = False
 
     def _make_coarse(self) -> InertialCoarseAlignment:
@@ -226,5 +227,6 @@ class TransferPipeline(GyroRateAidPipeline):
         return replace(record, mount_q=tuple(float(c) for c in q / np.linalg.norm(q)), mount_sigma_deg=sigma)
 
     def aiding_counters(self) -> dict[str, int]:
-        """Phase-1 epochs without the master, and phase 2's accepted and gated-out velocity and attitude epochs."""
-        return {"master_unaided_observations": self.coarse.unaided_observations, **self.filter_counters()}
+        """Phase-1 epochs awaiting or without the master, and phase 2's accepted and gated-out velocity and attitude
+        epochs."""
+        return {**super().aiding_counters(), **self.filter_counters()}

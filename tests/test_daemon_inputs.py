@@ -320,8 +320,8 @@ def test_the_daemon_runs_the_gnss_kalman_stage_on_serial_aiding_frames(tmp_path,
 
 def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_path, pty_pair, running):
     """GIVEN a 1-Hz GNSS receiver (the default max_gap_s 0.5; max_wait_s 1.5 as the README asks: the interval plus
-    the latency), fixes 0.3 s of data late as serial aiding frames, THEN its 1-s intervals are no gaps, the only
-    fault counted is the 9 observations before the first fix, the Kalman stage takes each fix once (one update per
+    the latency), fixes 0.3 s of data late as serial aiding frames, THEN its 1-s intervals are no gaps, no fault is
+    counted (the 9 observations before the first fix await it), the Kalman stage takes each fix once (one update per
     fix, not one per 0.1-s step), no notice is raised, the records equal the replay's and the heading is right."""
     scenario = get_scenario("seed004").with_aid_rate(1.0).for_seed(1)
     epochs = gnss_epochs(scenario, 1)[:round(GNSS_SECONDS)]
@@ -329,7 +329,7 @@ def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_p
                                           GNSS_SPEED, 0.3, "serial",
                                           {"gnss_lever_m": list(scenario.gnss.lever_b), "max_wait_s": 1.5,
                                            "gnss_handover_s": 12.0})
-    assert messages.faults(counters) == {"gnss_unaided_observations": 9}
+    assert messages.faults(counters) == {} and counters["gnss_observations_awaiting_aid"] == 9
     fixes_in_kalman_stage = int((epochs[:, 0] > 12.0).sum())
     assert counters["gnss_vel_accepted"] + counters.get("gnss_vel_rejected", 0) == fixes_in_kalman_stage
     assert counters["gnss_pos_accepted"] + counters.get("gnss_pos_rejected", 0) == fixes_in_kalman_stage
@@ -339,6 +339,34 @@ def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_p
     sigma = np.array([m["heading_sigma_deg"] for m in records])
     # seed 1 measured: 2.6° at 5 s, 0.45° at 20 s (twelve fixes before the hand-over), 0.13° at 24 s, at most 1.17σ
     assert (np.abs(phi[t >= 5.0, 2]) <= 3.0 * sigma[t >= 5.0]).all() and abs(phi[-1, 2]) < 0.2
+
+
+def test_a_gnss_mode_without_a_fix_yet_is_starting_not_degraded_across_a_restart(pty_pair, running):
+    """GIVEN the GNSS mode and IMU frames but no fix (a receiver still searching), 3 s, a 1-s outage of the IMU
+    (the alignment restarts) and 2 s more, THEN every status is "starting" (saying it waits for the first gnss
+    epoch until an error says more) save the outage's (degraded: the IMU's gap and restart are faults), the observations
+    that waited are counted over both pipelines as work, and no unaided observation is counted as a fault."""
+    scenario = get_scenario("seed004")
+    run = running(**daemon_sections(scenario), aiding={"inputs": ["gnss"], "max_wait_s": 0.2})
+    chunk = simulated_run(scenario, 6.0)
+    first, rest = slice(0, 300), slice(400, 600)
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t[first], chunk.dtheta[first], chunk.dv[first], 0))
+    wait_until(lambda: run.daemon.counters.samples_used == 300)
+    time.sleep(0.3)   # a status period
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t[rest], chunk.dtheta[rest], chunk.dv[rest], 400))
+    wait_until(lambda: run.daemon.counters.samples_used == 500)
+    time.sleep(0.3)
+    run.stop()
+    statuses = [s for s in run.subscriber.status if s["counters"].get("samples_used")]
+    assert {s["health"] for s in statuses} == {"starting", "degraded"} and statuses[-1]["health"] == "starting"
+    before_outage = [s for s in statuses if s["counters"]["samples_used"] == 300]
+    assert before_outage and all(s["health"] == "starting" and s["last_error"] == "waiting for the first gnss epoch: "
+                                 "the aided alignment starts with it" for s in before_outage)
+    counters = statuses[-1]["counters"]
+    assert messages.faults(counters) == {"seq_gaps": 100, "restarts": 1}
+    # before the outage 0.1-3.0 s (the restart hands the old pipeline what waited), after it 4.1-5.7 s (the last
+    # 0.2 s wait for a fix, and the control step ending at 5.8 s is not complete)
+    assert counters["gnss_observations_awaiting_aid"] == 30 + 17
 
 
 def test_the_wait_says_when_the_aiding_comes_less_often_than_max_wait_s():

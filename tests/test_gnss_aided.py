@@ -12,6 +12,7 @@ from dataclasses import replace
 
 import numpy as np
 from aided_runs import process_simulation
+from sinsalign.protocol import messages
 from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
@@ -21,6 +22,7 @@ from sinsalign.service.config import config_from_mapping
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import gnss_epochs, with_gnss_faults
 from sinsalign.tools.sim.files import write_simulation
+from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
 
@@ -96,6 +98,29 @@ def test_exact_sensors_stay_exact_across_a_gap_in_the_fixes_in_either_formula():
         inside = (t > 20.0) & (t < 20.0 + gap_s)
         assert np.abs(phi[(t >= 10.0) & ~inside]).max() < 0.001, formula
         assert np.abs(phi[inside]).max() < 0.002, formula
+
+
+def test_observations_before_the_first_fix_await_it_and_those_in_a_later_outage_are_unaided():
+    """A receiver whose first fix comes 3 s after the IMU's start and which drops out for 5 s later: the 29
+    observations due before the first fix (0.1-2.9 s) await the aid, not a fault; the 50 in the outage are a
+    dropout, counted as unaided (a fault); the pipeline awaits the aid until the first fix, not after."""
+    scenario = replace(get_scenario("seed004-ideal"), duration_s=30.0)
+    awaiting = []
+    config = config_from_mapping({"aiding": {"gnss_lever_m": list(scenario.gnss.lever_b)}})
+    pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["gnss"])
+    epochs = gnss_epochs(scenario.for_seed(1), 1)
+    feed = AidingFeed(AidingTrack.for_kind("gnss"), iter([with_gnss_faults(epochs[epochs[:, 0] >= 3.0],
+                                                                             outage_s=(20.0, 25.0))]))
+    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, 1):
+        step = round(0.5 * scenario.rate_hz)   # 0.5 s at a time
+        for k in range(0, len(chunk.t), step):
+            s = slice(k, k + step)
+            pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.aid_at(chunk.t[s]))
+            awaiting.append((round(float(chunk.t[s][-1]), 3), pipeline.awaiting_aid))
+    counters = pipeline.aiding_counters()
+    assert counters["gnss_observations_awaiting_aid"] == 29 and counters["gnss_unaided_observations"] == 50
+    assert [t for t, waits in awaiting if waits] == [0.5, 1.0, 1.5, 2.0, 2.5]
+    assert messages.faults(counters) == {"gnss_unaided_observations": 50}
 
 
 def test_the_first_fix_error_does_not_pin_the_position_formula():
@@ -245,6 +270,7 @@ def test_a_5_hz_receiver_gives_one_observation_and_one_update_per_fix_and_stays_
     n_obs = {r.t: r.n_obs for r in records}
     assert (n_obs[10.0], n_obs[20.0], n_obs[40.0]) == (50, 100, 200)
     assert counters["gnss_vel_accepted"] == counters["gnss_pos_accepted"] == 100      # the fixes of (20 s, 40 s]
-    assert counters["gnss_unaided_observations"] == 1                                  # 0.1 s: before the first fix
+    assert counters["gnss_observations_awaiting_aid"] == 1                             # 0.1 s: before the first fix
+    assert counters["gnss_unaided_observations"] == 0
     t, phi = errors_deg(scenario, records)
     assert records[-1].phase == "aligned" and np.abs(phi[t >= 10.0]).max() < 0.001

@@ -68,7 +68,9 @@ class InertialCoarseAlignment:
         self.t0: float | None = None
         self.t: float | None = None
         self._obs_count = 0
-        self.unaided_observations = 0
+        self.observations_awaiting_aid = 0   # due before the aid's first usable value: a wait, not a fault
+        self.unaided_observations = 0        # due without aid after it had started: a dropout
+        self.aid_started = False
         self._aid_epoch = -1.0   # the aiding epoch of the last observation
 
     def update(self, dtheta: np.ndarray, dv: np.ndarray, t: float) -> None:
@@ -99,7 +101,8 @@ class InertialCoarseAlignment:
         """The observations due among integrated samples: (sample indices, δK, tr R) for the solver's fold.
 
         ``aid`` (N, k): aiding values at the samples (NaN where none), for an aided source; an
-        observation due at a sample without them is skipped and counted. ``aid_epoch`` (N,): the number
+        observation due at a sample without them is skipped and counted: as awaiting the aid before its
+        first usable value (a receiver before its first fix), as unaided after it. ``aid_epoch`` (N,): the number
         of the newest aiding epoch at or before each sample; an observation due before a newer epoch
         than the last observation's is skipped (not counted): an aid slower than the observations
         gives one observation per epoch, not several interpolated from the same two.
@@ -110,7 +113,10 @@ class InertialCoarseAlignment:
         self._obs_count = int(counts[-1])
         if aid is not None:
             usable = np.isfinite(aid[due]).all(axis=1)
-            self.unaided_observations += int(len(due) - usable.sum())
+            waiting = 0 if self.aid_started else int(np.argmax(usable)) if usable.any() else len(due)
+            self.aid_started = self.aid_started or bool(usable.any())
+            self.observations_awaiting_aid += waiting
+            self.unaided_observations += int(len(due) - waiting - usable.sum())
             due = due[usable]
             if aid_epoch is not None:
                 epoch = aid_epoch[due]
