@@ -26,6 +26,9 @@ from .config import Config, ConfigError
 INITIAL_TILT_SIGMA_DEG = 0.1
 INITIAL_HEADING_SIGMA_DEG = 1.5
 """1-sigma errors assumed for an attitude given from outside (compass alone, seed 001's start)."""
+AID_EPOCH_COLUMN = 7
+"""The layout of the samples the pipeline holds: t, Δθ (3), Δv (3); an aided pipeline's then the aiding epoch's
+number and the aiding values (``aid_width``)."""
 
 
 def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> SensorGrade:
@@ -111,7 +114,7 @@ class AlignmentPipeline:
         self._disturbed_until = -np.inf
         self._reference_C_b0_n0: np.ndarray | None = None
         self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
-        self._pending = np.empty((self.block_samples, 7 + (1 + self.aid_width if self.aid_width else 0)))
+        self._pending = np.empty((self.block_samples, AID_EPOCH_COLUMN + (1 + self.aid_width if self.aid_width else 0)))
         self._n_pending = 0
         self._epoch_count: int | None = None
         self._emitted_count = -(2**62)
@@ -265,11 +268,11 @@ class AlignmentPipeline:
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
         """The aiding values of the samples (N, ``aid_width``), None without aiding."""
-        return samples[:, 8:] if self.aid_width else None
+        return samples[:, AID_EPOCH_COLUMN + 1:] if self.aid_width else None
 
     def _aid_epoch(self, samples: np.ndarray) -> np.ndarray | None:
         """The number (N,) of the newest aiding epoch at or before each sample (NaN: none), None without aiding."""
-        return samples[:, 7] if self.aid_width else None
+        return samples[:, AID_EPOCH_COLUMN] if self.aid_width else None
 
     def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray,
                       aid: np.ndarray | None, aid_epoch: float | None) -> None:
