@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import sys
 import time
 from pathlib import Path
@@ -95,23 +96,19 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
-def _aided_table(name: str, seeds: range, out: Path) -> bool:
+AIDED_TABLES = {"seed003": ("evaluate_aided", "seed003_table", "plot_seed003"),
+                "seed002": ("evaluate_transfer", "seed002_table", "plot_seed002"),
+                "seed004": ("evaluate_gnss", "seed004_table", "plot_seed004"),
+                "seed004-rates": ("evaluate_gnss", "rate_table", "plot_rates")}
+"""``eval`` names that run an aided mode's own table of fixed variants: module in sinsalign.tools, table, plot."""
+
+
+def _aided_table(name: str, seeds: range, out: Path) -> None:
     """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates: slower GNSS
-    receivers) and plots; False for other names."""
-    if name == "seed003":
-        from sinsalign.tools.evaluate_aided import plot_seed003 as plot
-        from sinsalign.tools.evaluate_aided import seed003_table as table
-    elif name == "seed002":
-        from sinsalign.tools.evaluate_transfer import plot_seed002 as plot
-        from sinsalign.tools.evaluate_transfer import seed002_table as table
-    elif name == "seed004":
-        from sinsalign.tools.evaluate_gnss import plot_seed004 as plot
-        from sinsalign.tools.evaluate_gnss import seed004_table as table
-    elif name == "seed004-rates":
-        from sinsalign.tools.evaluate_gnss import plot_rates as plot
-        from sinsalign.tools.evaluate_gnss import rate_table as table
-    else:
-        return False
+    receivers) and plots."""
+    module_name, table_name, plot_name = AIDED_TABLES[name]
+    module = importlib.import_module(f"sinsalign.tools.{module_name}")
+    table, plot = getattr(module, table_name), getattr(module, plot_name)
     text, runs = table(seeds)
     if name == "seed002":
         from sinsalign.tools.evaluate_transfer import phase1_comparison
@@ -119,10 +116,10 @@ def _aided_table(name: str, seeds: range, out: Path) -> bool:
     (out / f"{name}.md").write_text(text + "\n")
     print(text)
     print(f"\nplot: {plot(runs, out / f'{name}_heading.png')}\ntable: {out / f'{name}.md'}")
-    return True
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
+    from sinsalign.service.config import ConfigError, load_config
     from sinsalign.tools.evaluate import (
         fine_table,
         monte_carlo,
@@ -134,10 +131,17 @@ def cmd_eval(args: argparse.Namespace) -> int:
     )
     seeds = range(args.first_seed, args.first_seed + args.seeds * args.seed_sets)
     out = Path(args.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    if _aided_table(args.scenario, seeds, out):
+    overrides = _overrides(args)
+    config = load_config(args.config, overrides)   # a wrong file or option fails here, before any run
+    if args.scenario in AIDED_TABLES:
+        if args.config or overrides:
+            raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config and the alignment "
+                              "options apply to a single scenario (sinsalign sim --list)")
+        out.mkdir(parents=True, exist_ok=True)
+        _aided_table(args.scenario, seeds, out)
         return 0
-    runs = monte_carlo(args.scenario, seeds, _overrides(args))
+    out.mkdir(parents=True, exist_ok=True)
+    runs = monte_carlo(args.scenario, seeds, config.as_dict())
     text = scenario_table(args.scenario, runs)
     if args.seed_sets > 1:
         text += "\n\n" + seed_set_table(args.scenario, runs, args.seeds)
@@ -395,7 +399,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("eval", help="Monte Carlo against simulated truth: table, settling, σ honesty, plot",
                        description="Run N seeds of a scenario in memory; print a paper-style table of heading and "
                        "level errors relative to each run's physical limit, settling time and how honest σ is; "
-                       "save OUT_DIR/SCENARIO_heading.png and OUT_DIR/SCENARIO.md.")
+                       "save OUT_DIR/SCENARIO_heading.png and OUT_DIR/SCENARIO.md. --config FILE and the alignment "
+                       "options configure the scenario's run (the scenario sets the site, rate and datasheet); the "
+                       "--solvers and --fine comparisons and the aided tables run their own fixed variants.")
     p.add_argument("scenario", help="a scenario name (sinsalign sim --list), or seed003 for the in-motion table over "
                    "20/60/80 m/s (traditional V^b vs multistage at 120 s, then the Kalman stage to 600 s), or "
                    "seed002 for the transfer-alignment table (dual model vs phase 1 alone, master faults; then phase 1 "

@@ -245,6 +245,26 @@ def test_cli_reports_config_error(capsys: pytest.CaptureFixture[str], tmp_path: 
     assert "alignment.obs_interval_s" in capsys.readouterr().err
 
 
+def test_eval_applies_the_configuration_file(tmp_path: Path) -> None:
+    """``eval --config`` runs the scenario with the file's configuration (it used to be read by the parser and left
+    unused): a file choosing the q-method gives the table ``--solver qmethod`` gives, not the default OPREQ's."""
+    config = write(tmp_path, '[alignment]\nsolver = "qmethod"\n')
+
+    def table(*options: str) -> str:
+        out = tmp_path / "_".join(options).replace("/", "") if options else tmp_path / "default"
+        assert main(["eval", "seed000-swing", "--seeds", "1", "--no-fine", "--out-dir", str(out), *options]) == 0
+        return (out / "seed000-swing.md").read_text()
+
+    from_file = table("--config", str(config))
+    assert from_file == table("--solver", "qmethod") and from_file != table()
+
+
+def test_eval_refuses_a_configuration_for_an_aided_table(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
+    config = write(tmp_path, '[alignment]\nsolver = "qmethod"\n')
+    assert main(["eval", "seed004", "--config", str(config), "--out-dir", str(tmp_path)]) == 2
+    assert "eval seed004 runs its table's own configurations" in capsys.readouterr().err
+
+
 # --- fuzzing ----------------------------------------------------------------------------------------------------------
 
 SECTION_NAMES = [f.name for f in fields(Config)]
