@@ -82,8 +82,9 @@ class AlignmentPipeline:
     """
 
     aid_width = 0
-    aid_kind = ""   # the aiding kind of the pipeline's aid columns (``[aiding]`` and status counter prefix)
     """Aiding values per sample that :meth:`process` takes (0: none; aided pipelines set it)."""
+    aid_kind = ""
+    """The aiding kind of those values (``odo``, ``gnss``, ``master``): the prefix of its status counters."""
     checks_translation = True
     """Whether a base that translates is a disturbance (not for a base meant to move)."""
     checks_noise = True
