@@ -235,12 +235,17 @@ class AidingFeed:
         return rows
 
 
+ASSUMED_INTERVAL_S = 1.0
+"""A stream's interval between epochs until two epochs show it: 1 s, the slowest common aid (a 1-Hz GNSS receiver)."""
+
+
 class AidingWait:
     """IMU samples held until an aiding stream has caught up with them (the daemon's side of the track).
 
     Aiding arrives late (its own latency, transport); a sample leaves once the track holds an epoch
-    at or after it, or once it is ``max_wait_s`` older than the newest sample (data clock, so the
-    outcome does not depend on the machine's speed), then unaided where the track has nothing.
+    at or after it, or once it is :attr:`wait_s` older than the newest sample (data clock, so the
+    outcome does not depend on the machine's speed), then unaided where the track has nothing. The
+    wait covers the stream's own interval, so a slow stream (a 1-Hz receiver) needs no setting.
     """
 
     def __init__(self, track: AidingTrack, max_wait_s: float) -> None:
@@ -260,7 +265,7 @@ class AidingWait:
             return self._rows, np.empty((0, 1 + self.track.width))
         latest = self.track.latest_time
         until = np.inf if everything else max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
-                                              t[-1] - self.max_wait_s)
+                                              t[-1] - self.wait_s)
         n = int(np.searchsorted(t, until, side="right"))
         out, self._rows = self._rows[:n], self._rows[n:]
         aid = self.track.aid_at(out[:, 0])
@@ -273,11 +278,11 @@ class AidingWait:
         return len(self._rows)
 
     @property
-    def notice(self) -> str | None:
-        """What the operator must change when the aiding comes less often than ``max_wait_s``: a sample after an
-        epoch leaves before the next epoch is there, unaided (and unlike a replay of the same data)."""
+    def wait_s(self) -> float:
+        """How long (s of data) a sample waits for the epoch after it: ``max_wait_s`` for the stream's latency, plus
+        its usual interval once it has started (:data:`ASSUMED_INTERVAL_S` until two epochs show it). Before the
+        first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can be interpolated anyway."""
+        if self.track.latest_time is None:
+            return self.max_wait_s
         interval = self.track.usual_interval_s
-        if interval is None or interval <= self.max_wait_s:
-            return None
-        return (f"aiding epochs come less often than aiding.max_wait_s ({self.max_wait_s:g} s): samples leave before "
-                "the next epoch and go unaided; set max_wait_s to at least the epochs' interval plus their latency")
+        return self.max_wait_s + (ASSUMED_INTERVAL_S if interval is None else interval)

@@ -90,8 +90,8 @@ class AidingConfig:
     most this (a linear filter started several degrees off grows overconfident); a full window above it
     keeps the coarse stage, and says so.
     Daemon: ``inputs`` lists the aiding kinds it subscribes to (``…/aid/<kind>`` on Zenoh, serial
-    aiding frames) and selects the aided mode; IMU samples wait up to ``max_wait_s`` (data time)
-    for their aiding to arrive.
+    aiding frames) and selects the aided mode; an IMU sample waits (data time) for the aiding epoch after
+    it up to the stream's usual interval plus ``max_wait_s`` (its latency and transport delay).
     """
 
     odo_latency_s: float = 0.0

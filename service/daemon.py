@@ -5,8 +5,8 @@ arrived (serial port and/or the Zenoh IMU topic), decode, check every sample (ti
 forward, values finite), feed the pipeline, publish each attitude record as it comes out, and
 publish the status at ``daemon.status_period_s`` of wall time. In an aided mode
 (``aiding.inputs``: ``odo``, ``gnss`` or ``master``) the epochs of that kind (``…/aid/<kind>`` on Zenoh, serial
-aiding frames) go to its track, and each IMU sample waits for its aiding (at most
-``aiding.max_wait_s`` of data time) before the pipeline takes both. Every drop is counted in the
+aiding frames) go to its track, and each IMU sample waits for its aiding (at most the stream's usual
+interval plus ``aiding.max_wait_s`` of data time) before the pipeline takes both. Every drop is counted in the
 status; nothing received over the wire is executed or changes the configuration. The Zenoh side
 also holds a liveliness token and answers a read-only query with the current state and the
 effective configuration.
@@ -94,7 +94,7 @@ class Daemon:
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.counters = SampleCounters()
         self.last_error: str | None = None
-        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None, "aiding": None}
+        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None}
         self._disturbances_before = 0
         self._aiding_before: dict[str, int] = {}   # the aiding counters of the pipelines before restarts
         self.last_record: ResultRecord | None = None
@@ -256,8 +256,7 @@ class Daemon:
                 self._record_raw(t, segment.rows[:, 1:4], segment.rows[:, 4:7])
                 records += self._feed(segment.rows)
             for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance),
-                                 ("alignment", self.pipeline.last_notice),
-                                 ("aiding", None if self._wait is None else self._wait.notice)):
+                                 ("alignment", self.pipeline.last_notice)):
                 if text and text != self._reported[source]:   # report each new event once
                     self._reported[source] = text
                     self._error(text)

@@ -436,7 +436,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "output epoch) and <prefix>/<unit>/status (1 Hz, counters and health); hold the liveliness "
                        "token <prefix>/<unit>/alive and answer <prefix>/<unit>/state. With --aid KIND, aiding epochs "
                        "come from <prefix>/<unit>/aid/KIND and serial aiding frames, and each IMU sample waits for "
-                       "its aiding (aiding.max_wait_s). Stops cleanly on SIGINT or SIGTERM. Example: sinsalign serve "
+                       "its aiding (its interval plus aiding.max_wait_s). Stops cleanly on SIGINT or SIGTERM. "
+                       "Example: sinsalign serve "
                        "--serial /dev/ttyUSB0 --baud 921600 --config bench.toml [--aid gnss]")
     p.add_argument("--serial", metavar="PATH", help="serial device, e.g. /dev/ttyUSB0 or a pty from sinsalign bench")
     p.add_argument("--baud", type=int, help="baud rate (default 921600; a pty ignores it)")

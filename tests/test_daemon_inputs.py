@@ -319,16 +319,16 @@ def test_the_daemon_runs_the_gnss_kalman_stage_on_serial_aiding_frames(tmp_path,
 
 
 def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_path, pty_pair, running):
-    """GIVEN a 1-Hz GNSS receiver (the default max_gap_s 0.5; max_wait_s 1.5 as the README asks: the interval plus
-    the latency), fixes 0.3 s of data late as serial aiding frames, THEN its 1-s intervals are no gaps, no fault is
-    counted (the 9 observations before the first fix await it), the Kalman stage takes each fix once (one update per
-    fix, not one per 0.1-s step), no notice is raised, the records equal the replay's and the heading is right."""
+    """GIVEN a 1-Hz GNSS receiver with the default configuration (max_gap_s and max_wait_s 0.5: the samples wait
+    for the stream's own interval plus max_wait_s), fixes 0.3 s of data late as serial aiding frames, THEN its 1-s
+    intervals are no gaps, no fault is counted (the 9 observations before the first fix await it), the Kalman stage
+    takes each fix once (one update per fix, not one per 0.1-s step), the records equal the replay's and the heading
+    is right. (With the wait at max_wait_s alone, half of every interval went unaided.)"""
     scenario = get_scenario("seed004").with_aid_rate(1.0).for_seed(1)
     epochs = gnss_epochs(scenario, 1)[:round(GNSS_SECONDS)]
     records, counters, config = run_aided(tmp_path, pty_pair, running, scenario, "gnss", epochs, GNSS_SECONDS,
                                           GNSS_SPEED, 0.3, "serial",
-                                          {"gnss_lever_m": list(scenario.gnss.lever_b), "max_wait_s": 1.5,
-                                           "gnss_handover_s": 12.0})
+                                          {"gnss_lever_m": list(scenario.gnss.lever_b), "gnss_handover_s": 12.0})
     assert messages.faults(counters) == {} and counters["gnss_observations_awaiting_aid"] == 9
     fixes_in_kalman_stage = int((epochs[:, 0] > 12.0).sum())
     assert counters["gnss_vel_accepted"] + counters.get("gnss_vel_rejected", 0) == fixes_in_kalman_stage
@@ -369,12 +369,28 @@ def test_a_gnss_mode_without_a_fix_yet_is_starting_not_degraded_across_a_restart
     assert counters["gnss_observations_awaiting_aid"] == 30 + 17
 
 
-def test_the_wait_says_when_the_aiding_comes_less_often_than_max_wait_s():
+def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
+    """Before the first epoch max_wait_s (nothing earlier can be interpolated); after it the stream's interval is
+    added, 1 s until a second epoch shows it; a sample after a 1-Hz fix waits for the next one, not max_wait_s."""
     wait = AidingWait(AidingTrack(1), max_wait_s=0.5)
-    wait.track.push(np.array([[0.0, 1.0], [0.4, 1.0]]))
-    assert wait.notice is None
-    wait.track.push(np.array([[1.4, 1.0], [2.4, 1.0]]))         # the median interval is now 1 s
-    assert "aiding.max_wait_s (0.5 s)" in wait.notice
+    assert wait.wait_s == 0.5
+    wait.track.push(np.array([[0.0, 1.0]]))
+    assert wait.wait_s == 1.5
+    wait.track.push(np.array([[1.0, 2.0]]))
+    assert wait.wait_s == 1.5
+    wait.push(np.column_stack((np.arange(101, 241) / 100.0, np.zeros((140, 6)))))   # 1.01-2.40 s
+    out, _ = wait.release()
+    assert len(out) == 0                                     # 0.9 s of data after 2.4 s: the next fix is not due
+    wait.track.push(np.array([[2.0, 3.0]]))
+    out, aid = wait.release()
+    assert out[-1, 0] == 2.0 and np.allclose(aid[:, 1], 1.0 + out[:, 0])   # interpolated between the fixes
+    wait.push(np.column_stack((np.arange(241, 361) / 100.0, np.zeros((120, 6)))))   # to 3.6 s: the fix at 3 s late
+    out, aid = wait.release()
+    assert out[-1, 0] == 2.1 and np.isnan(aid[:, 1]).all()  # overdue by max_wait_s: those go unaided
+    for interval in (0.02, 0.1):
+        fast = AidingWait(AidingTrack(1), max_wait_s=0.5)
+        fast.track.push(np.column_stack((np.arange(20) * interval, np.ones(20))))
+        assert fast.wait_s == pytest.approx(0.5 + interval)
 
 
 def test_a_burst_of_gnss_glitches_in_the_kalman_stage_raises_the_screening_alarm_live(tmp_path, pty_pair, running):
