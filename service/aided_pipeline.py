@@ -91,8 +91,7 @@ class VelocityAidedPipeline(KalmanStagePipeline):
         """What the estimators made of the aiding: observations awaiting or without it, multistage pairs left out as
         outliers, and the Kalman stage's accepted and gated-out odometer readings."""
         result = self.coarse.source.result
-        return {**super().aiding_counters(), "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum()),
-                **self.filter_counters()}
+        return {**super().aiding_counters(), "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum())}
 
 
 AIDED_MODES = {frozenset(): AlignmentPipeline, frozenset({"odo"}): VelocityAidedPipeline,

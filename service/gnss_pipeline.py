@@ -114,4 +114,4 @@ class GnssAidedPipeline(GyroRateAidPipeline):
         out (glitches) and screens reopened after a run of rejections, and the Kalman stage's accepted
         and gated-out velocity and position fixes."""
         return {**super().aiding_counters(), "gnss_coarse_rejected": self.coarse.solver.rejected,
-                "gnss_coarse_reopened": self.coarse.solver.reopened, **self.filter_counters()}
+                "gnss_coarse_reopened": self.coarse.solver.reopened}

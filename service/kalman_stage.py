@@ -60,13 +60,13 @@ class KalmanStagePipeline(AlignmentPipeline):
                                                     f"aiding.handover_heading_sigma_deg {limit:g}°{notice[1]}")
         return None
 
-    def filter_counters(self) -> dict[str, int]:
-        """Each measurement's updates the filter accepted and its gate turned away (``<name>_accepted``,
-        ``<name>_rejected``); none before the filter exists."""
-        if self.fine is None:
-            return {}
-        return {f"{name}_{what}": getattr(c, what) for name, c in self.fine.counters.items()
-                for what in ("accepted", "rejected")}
+    def aiding_counters(self) -> dict[str, int]:
+        """The coarse stage's (:meth:`AlignmentPipeline.aiding_counters`), then each measurement's updates the filter
+        accepted and its gate turned away (``<name>_accepted``, ``<name>_rejected``; none before the filter exists)."""
+        filter_counts = {} if self.fine is None else {f"{name}_{what}": getattr(c, what)
+                                                       for name, c in self.fine.counters.items()
+                                                       for what in ("accepted", "rejected")}
+        return {**super().aiding_counters(), **filter_counts}
 
     def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0, coarse: InertialCoarseAlignment) -> ResultRecord:
         if self.fine is None or not self.fine.active:

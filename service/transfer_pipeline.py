@@ -225,8 +225,3 @@ class TransferPipeline(GyroRateAidPipeline):
         M, sigma = self.mounting(coarse)
         q = quat_from_dcm(M)
         return replace(record, mount_q=tuple(float(c) for c in q / np.linalg.norm(q)), mount_sigma_deg=sigma)
-
-    def aiding_counters(self) -> dict[str, int]:
-        """Phase-1 epochs awaiting or without the master, and phase 2's accepted and gated-out velocity and attitude
-        epochs."""
-        return {**super().aiding_counters(), **self.filter_counters()}
