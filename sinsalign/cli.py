@@ -96,19 +96,25 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
-AIDED_TABLES = {"seed003": ("evaluate_aided", "seed003_table", "plot_seed003"),
-                "seed002": ("evaluate_transfer", "seed002_table", "plot_seed002"),
-                "seed004": ("evaluate_gnss", "seed004_table", "plot_seed004"),
-                "seed004-rates": ("evaluate_gnss", "rate_table", "plot_rates")}
-"""``eval`` names that run an aided mode's own table of fixed variants: module in sinsalign.tools, table, plot."""
+AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot_seed003"),
+                "seed002": ("evaluate_transfer.seed002_table", "evaluate_transfer.plot_seed002"),
+                "seed004": ("evaluate_gnss.seed004_table", "evaluate_gnss.plot_seed004"),
+                "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
+                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates")}
+"""``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
+sinsalign.tools)."""
+
+
+def _tool(name: str):
+    """The function ``module.function`` of sinsalign.tools, imported on demand (the tools pull in matplotlib)."""
+    module, function = name.rsplit(".", 1)
+    return getattr(importlib.import_module(f"sinsalign.tools.{module}"), function)
 
 
 def _aided_table(name: str, seeds: range, out: Path) -> None:
-    """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates: slower GNSS
-    receivers) and plots."""
-    module_name, table_name, plot_name = AIDED_TABLES[name]
-    module = importlib.import_module(f"sinsalign.tools.{module_name}")
-    table, plot = getattr(module, table_name), getattr(module, plot_name)
+    """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates and
+    seed002-rates: slower GNSS receivers and master INS) and plots."""
+    table, plot = (_tool(f) for f in AIDED_TABLES[name])
     text, runs = table(seeds)
     if name == "seed002":
         from sinsalign.tools.evaluate_transfer import phase1_comparison
@@ -408,7 +414,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "against the seed's additive-quaternion EKF), or "
                    "seed004 for the in-flight GNSS table (VIF vs PIF, lever arm compensated or ignored, and VIF "
                    "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty), or seed004-rates for "
-                   "the same flight with 50/10/5/1-Hz receivers (120 s: accuracy, σ honesty, gaps)")
+                   "the same flight with 50/10/5/1-Hz receivers (120 s: accuracy, σ honesty, gaps), or "
+                   "seed002-rates for the transfer alignment with the master INS at 10/5/2/1 Hz")
     p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
     p.add_argument("--first-seed", type=int, default=0)
     p.add_argument("--seed-sets", type=int, default=1, metavar="K",
