@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .conventions import dcm_from_quat, quat_normalize
+from .conventions import dcm_from_quat, quat_normalize, skew
 
 if TYPE_CHECKING:
     from .sensor_model import SensorGrade
@@ -167,10 +167,12 @@ class CentredWahba:
         μ ignored). A weighted fit's residual variance is then in units of the stated noise.
     drift : a second nuisance vector c₁ times the scalar ``s`` given to ``prepare`` per pair (the
         position formula's first-fix error over the span).
-    gate_chi2 : screen each pair before it is added (GNSS glitches): a pair whose residual against
-        the fit so far, |e|²/μ over the fit's residual variance per axis (at least 1: never tighter
-        than the stated noise), exceeds this is left out and counted in ``rejected``. Active from
-        :data:`GATE_MIN_PAIRS` pairs on (None: no screening); after :data:`GATE_REOPEN_PAIRS`
+    gate_chi2 : screen each pair before it is added (GNSS glitches): a pair whose residual e against
+        the fit so far, eᵀS⁻¹e with S its predicted covariance in units of the stated noise (the pair's,
+        the offset estimate's and the fit's attitude error seen through the pair's reference), over the
+        fit's residual variance per axis (at least 1: never tighter than the stated noise), exceeds this
+        is left out and counted in ``rejected``. Active from :data:`GATE_MIN_PAIRS` pairs on, the fit's
+        first residual degrees of freedom (None: no screening); after :data:`GATE_REOPEN_PAIRS`
         rejections in a row the next as many pairs are taken unscreened (counted in ``reopened``): a
         fit gone wrong, or a lasting change of the data, must not lock the data out for good.
     """
@@ -290,10 +292,17 @@ class CentredWahba:
         return variance * np.linalg.inv(np.trace(S_rr_c) * np.eye(3) - S_rr_c)
 
     def _consistent(self, b: np.ndarray, r: np.ndarray, w: float, z: np.ndarray) -> bool:
-        C, _, variance = self._fit()
-        c = (self.S_bz - C.T @ self.S_rz) @ self._nuisance_inverse()     # (3, m): the nuisance vectors
+        """Whether the pair's residual against the fit so far is inside the gate, judged by the residual's predicted
+        covariance: the pair's own noise, the nuisance estimate's and the fit's attitude error seen through the
+        centred reference (so the screen holds from the first pairs, while the fit is still rough)."""
+        C, S_rr_c, variance = self._fit()
+        G = self._nuisance_inverse()
+        c = (self.S_bz - C.T @ self.S_rz) @ G     # (3, m): the nuisance vectors
         e = b - C.T @ r - c @ z
-        return w * float(e @ e) <= self.gate_chi2 * max(variance, 1.0)
+        seen = C.T @ skew(r - self.S_rz @ G @ z)   # d e / d θ, θ the fit's rotation error in n0 axes
+        information = np.trace(S_rr_c) * np.eye(3) - S_rr_c
+        S = (1.0 / w + float(z @ G @ z)) * np.eye(3) + seen @ np.linalg.solve(information, seen.T)
+        return float(e @ np.linalg.solve(S, e)) <= self.gate_chi2 * max(variance, 1.0)
 
 
 class GroupedWahba:
@@ -427,8 +436,10 @@ class WhitenedWahba(CentredWahba):
         return super().prepare(db, dr, S)
 
 
-GATE_MIN_PAIRS = 20
-"""Pairs the fit needs before it screens new ones (its residual variance means little before)."""
+GATE_MIN_PAIRS = 4
+"""Pairs the fit needs before it screens new ones: its first residual degrees of freedom. The screen's covariance
+carries the rough early fit's own error, so it need not wait for a settled fit (it waited for 20 pairs: 20 s of a
+1-Hz receiver, whose glitch at 5 s then left the heading 26° off at 10 s)."""
 GATE_REOPEN_PAIRS = 30
 """Rejections in a row after which the screen lets as many pairs through (3 s of 10-Hz pairs: longer than a
 glitch)."""
