@@ -237,6 +237,9 @@ class AidingFeed:
 
 ASSUMED_INTERVAL_S = 1.0
 """A stream's interval between epochs until two epochs show it: 1 s, the slowest common aid (a 1-Hz GNSS receiver)."""
+MAX_INTERVAL_S = 2.0
+"""The longest stream interval the wait covers by itself (s); a slower stream needs ``max_wait_s`` raised. The bound
+keeps a long silence from holding the output: a lone fix after ten minutes would set a ten-minute interval."""
 
 
 class AidingWait:
@@ -265,7 +268,7 @@ class AidingWait:
             return self._rows, np.empty((0, 1 + self.track.width))
         latest = self.track.latest_time
         until = np.inf if everything else max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
-                                              t[-1] - self.wait_s)
+                                              t[-1] - self.wait_s + TIME_TOLERANCE_S)
         n = int(np.searchsorted(t, until, side="right"))
         out, self._rows = self._rows[:n], self._rows[n:]
         aid = self.track.aid_at(out[:, 0])
@@ -280,9 +283,10 @@ class AidingWait:
     @property
     def wait_s(self) -> float:
         """How long (s of data) a sample waits for the epoch after it: ``max_wait_s`` for the stream's latency, plus
-        its usual interval once it has started (:data:`ASSUMED_INTERVAL_S` until two epochs show it). Before the
-        first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can be interpolated anyway."""
+        its usual interval once it has started (:data:`ASSUMED_INTERVAL_S` until two epochs show it; at most
+        :data:`MAX_INTERVAL_S`). Before the first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can
+        be interpolated anyway."""
         if self.track.latest_time is None:
             return self.max_wait_s
         interval = self.track.usual_interval_s
-        return self.max_wait_s + (ASSUMED_INTERVAL_S if interval is None else interval)
+        return self.max_wait_s + min(ASSUMED_INTERVAL_S if interval is None else interval, MAX_INTERVAL_S)

@@ -43,6 +43,9 @@ from .serial_port import SerialPort
 
 log = logging.getLogger("sinsalign.daemon")
 NO_INPUT_S = 1.0
+AID_START_GRACE_S = 30.0
+"""IMU data (s) an aided mode may run without a usable aiding value before health degrades: a GNSS receiver's
+warm start; a stream that never comes, comes for another kind, or is stamped off the IMU's clock shows after it."""
 INBOX_LIMIT = 100_000
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Daemon.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
@@ -98,7 +101,9 @@ class Daemon:
         self._disturbances_before = 0
         self._aiding_before: dict[str, int] = {}   # the aiding counters of the pipelines before restarts
         self.last_record: ResultRecord | None = None
+        self.t_first: float | None = None   # the first sample's time: how long an aided mode has run without aid
         self.t_last: float | None = None
+        self._pipeline_lock = threading.Lock()   # the status (a Zenoh query's thread too) sees a restart whole
         self._started = time.monotonic()
         self._last_input = None
         self._counters_at_status: dict[str, int] = {}
@@ -123,6 +128,16 @@ class Daemon:
     def _new_pipeline(self) -> AlignmentPipeline:
         return build_pipeline(self.config, self.site, self.config.imu.rate_hz,
                               aids=self.aid_kinds, live=True)
+
+    def _restart_pipeline(self) -> None:
+        """A fresh pipeline after an outage: the old one's counts carry on in the status, and an aid that had begun
+        stays begun (an observation without it is a dropout, not a wait)."""
+        pipeline = self._new_pipeline()
+        pipeline.coarse.aid_started = self.pipeline.coarse.aid_started
+        with self._pipeline_lock:
+            self._disturbances_before += self.pipeline.disturbances
+            self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
+            self.pipeline = pipeline
 
     # ---- inputs -------------------------------------------------------------------------
     def _aid_callback(self, kind: str):
@@ -247,11 +262,10 @@ class Daemon:
                 if segment.restart:
                     self._error(segment.reason)
                     records += self._feed(None, everything=True)   # what waited for aiding, to the old pipeline
-                    self._disturbances_before += self.pipeline.disturbances
-                    self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
-                    self.pipeline = self._new_pipeline()
+                    self._restart_pipeline()
                 t = segment.rows[:, 0]
                 self.counters.samples_used += len(t)
+                self.t_first = float(t[0]) if self.t_first is None else self.t_first
                 self.t_last = float(t[-1])
                 self._record_raw(t, segment.rows[:, 1:4], segment.rows[:, 4:7])
                 records += self._feed(segment.rows)
@@ -269,7 +283,7 @@ class Daemon:
         now = time.monotonic()
         if now >= self._next_status:
             self._next_status = now + self.config.daemon.status_period_s
-            self._status_pub.put(messages.pack(self.status()))
+            self._status_pub.put(messages.pack(self.status(advance=True)))
             if self._recording is not None:
                 self._recording.flush()
         return records
@@ -299,7 +313,7 @@ class Daemon:
         self._stop.set()
 
     def close(self) -> None:
-        self._status_pub.put(messages.pack(self.status()))
+        self._status_pub.put(messages.pack(self.status(advance=True)))
         for entity in (self._imu_sub, *self._aid_subs, self._queryable, self._token, self._status_pub,
                        self._attitude_pub):
             if entity is not None:
@@ -314,34 +328,50 @@ class Daemon:
 
     # ---- status, state, recording -----------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
+        with self._pipeline_lock:
+            pipeline_counts = {"disturbances": self._disturbances_before + self.pipeline.disturbances,
+                               **summed(self._aiding_before, self.pipeline.aiding_counters())}
         counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
-                    "disturbances": self._disturbances_before + self.pipeline.disturbances,
-                    **self.zenoh_sequence.counters("zenoh_seq_"),
-                    **summed(self._aiding_before, self.pipeline.aiding_counters())}
+                    **self.zenoh_sequence.counters("zenoh_seq_"), **pipeline_counts}
         for kind, track in self.tracks.items():
             counters |= track.counters.as_dict(f"{kind}_")
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects}
         return counters
 
-    def status(self) -> dict:
+    def status(self, advance: bool = False) -> dict:
+        """The status message; ``advance`` (the periodic status) makes its counters the baseline the next one's
+        health is judged against (a state query must not swallow a rise)."""
         counters = self.all_counters()
         errors = messages.fault_count(counters)
+        awaiting = self.pipeline.awaiting_aid
         if self._last_input is None:
             health = "starting" if time.monotonic() - self._started < NO_INPUT_S else "no_input"
         elif time.monotonic() - self._last_input > NO_INPUT_S:
             health = "no_input"
-        else:   # a receiver before its first fix is no fault: the aided alignment has not begun
+        else:   # a receiver before its first fix is no fault, for a while: the aided alignment has not begun
             rose = errors > messages.fault_count(self._counters_at_status)
-            health = ("degraded" if rose or messages.screening_alarm(self._counters_at_status, counters)
-                      else "starting" if self.pipeline.awaiting_aid else "ok")
-        self._counters_at_status = counters
-        last_error = self.last_error or (self.serial.last_error if self.serial is not None else None)
-        if last_error is None and self.pipeline.awaiting_aid:
-            last_error = f"waiting for the first {self.aid_kind} epoch: the aided alignment starts with it"
+            overdue = awaiting and self.t_last is not None and self.t_last - self.t_first > AID_START_GRACE_S
+            health = ("degraded" if rose or overdue or messages.screening_alarm(self._counters_at_status, counters)
+                      else "starting" if awaiting else "ok")
+        if advance:
+            self._counters_at_status = counters
+        last_error = self._aid_wait_text() if awaiting else None
+        last_error = last_error or self.last_error or (self.serial.last_error if self.serial is not None else None)
         phase = self.last_record.phase if self.last_record is not None else "coarse"
         return messages.status_message(self.keys.unit, time.monotonic() - self._started, health, phase, self.t_last,
                                        last_error, counters)
+
+    def _aid_wait_text(self) -> str | None:
+        """What an aided mode without a usable aiding value yet waits for, once IMU data have come."""
+        if self.t_last is None:
+            return None
+        track, kind = self.tracks[self.aid_kind], self.aid_kind
+        if track.latest_time is None:
+            return (f"no {kind} epoch yet after {self.t_last - self.t_first:.1f} s of IMU data: the aided alignment "
+                    f"starts with the first (check the receiver, --aid {kind}, its topic or serial frames)")
+        return (f"{kind} epochs arrive ({track.counters.epochs}, the newest at t = {track.latest_time:.2f} s) but "
+                f"none covers the IMU's time yet (t = {self.t_last:.2f} s): a clock offset or aiding.{kind}_latency_s?")
 
     def _on_query(self, query: zenoh.Query) -> None:
         state = {"v": messages.VERSION, "unit": self.keys.unit, "status": self.status(),

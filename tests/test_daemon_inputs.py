@@ -23,7 +23,7 @@ import zenoh
 from daemon_harness import RunningDaemon
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import MSG_AIDING, encode_aiding, encode_frame, encode_imu
-from sinsalign.service.aiding import AidingFeed, AidingTrack, AidingWait
+from sinsalign.service.aiding import MAX_INTERVAL_S, AidingFeed, AidingTrack, AidingWait
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.config import Config
 from sinsalign.tools.sim.aiding import (
@@ -343,11 +343,12 @@ def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_p
 
 def test_a_gnss_mode_without_a_fix_yet_is_starting_not_degraded_across_a_restart(pty_pair, running):
     """GIVEN the GNSS mode and IMU frames but no fix (a receiver still searching), 3 s, a 1-s outage of the IMU
-    (the alignment restarts) and 2 s more, THEN every status is "starting" (saying it waits for the first gnss
-    epoch until an error says more) save the outage's (degraded: the IMU's gap and restart are faults), the observations
-    that waited are counted over both pipelines as work, and no unaided observation is counted as a fault."""
+    (the alignment restarts) and 2 s more, THEN every status is "starting" and says no epoch has come yet, save the
+    outage's (degraded: the IMU's gap and restart are faults); the observations that waited are counted over both
+    pipelines as work, and none is counted as unaided (a fault)."""
     scenario = get_scenario("seed004")
-    run = running(**daemon_sections(scenario), aiding={"inputs": ["gnss"], "max_wait_s": 0.2})
+    max_wait_s = 0.2
+    run = running(**daemon_sections(scenario), aiding={"inputs": ["gnss"], "max_wait_s": max_wait_s})
     chunk = simulated_run(scenario, 6.0)
     first, rest = slice(0, 300), slice(400, 600)
     write_stream(pty_pair.master_fd, encode_samples(chunk.t[first], chunk.dtheta[first], chunk.dv[first], 0))
@@ -359,19 +360,69 @@ def test_a_gnss_mode_without_a_fix_yet_is_starting_not_degraded_across_a_restart
     run.stop()
     statuses = [s for s in run.subscriber.status if s["counters"].get("samples_used")]
     assert {s["health"] for s in statuses} == {"starting", "degraded"} and statuses[-1]["health"] == "starting"
-    before_outage = [s for s in statuses if s["counters"]["samples_used"] == 300]
-    assert before_outage and all(s["health"] == "starting" and s["last_error"] == "waiting for the first gnss epoch: "
-                                 "the aided alignment starts with it" for s in before_outage)
+    assert all(s["last_error"].startswith("no gnss epoch yet after") for s in statuses if s["health"] == "starting")
     counters = statuses[-1]["counters"]
     assert messages.faults(counters) == {"seq_gaps": 100, "restarts": 1}
-    # before the outage 0.1-3.0 s (the restart hands the old pipeline what waited), after it 4.1-5.7 s (the last
-    # 0.2 s wait for a fix, and the control step ending at 5.8 s is not complete)
-    assert counters["gnss_observations_awaiting_aid"] == 30 + 17
+    # every 0.1-s observation before the outage (the restart hands the old pipeline what waited), and after it
+    # those of the samples released: all but the last max_wait_s of data (the control step's end takes them)
+    assert counters["gnss_observations_awaiting_aid"] == 30 + round((6.0 - max_wait_s - 4.0) / 0.1)
+    assert counters["gnss_unaided_observations"] == 0
+
+
+def test_fixes_off_the_imus_clock_are_named_and_degrade_health_after_the_grace(pty_pair, running):
+    """GIVEN GNSS fixes that arrive all along but are stamped 100 s behind the IMU (another clock, or a latency in
+    the wrong unit), THEN the status says the epochs arrive but none covers the IMU's time, health is "starting"
+    for the grace of 30 s of IMU data (a receiver's warm start) and "degraded" after it."""
+    scenario = get_scenario("seed004")
+    run = running(**daemon_sections(scenario), aiding={"inputs": ["gnss"]})
+    chunk = simulated_run(scenario, 35.0)
+    epochs = gnss_epochs(scenario.for_seed(1), 1)[:round(35.0 * scenario.gnss.rate_hz)]
+    aiding = AidingPlayback("gnss", epochs, -100.0 + 0.1)   # sent in step with the IMU frames, stamped t - 100 s
+    stream = encode_samples(chunk.t + 100.0, chunk.dtheta, chunk.dv, 0, aiding) + aiding.rest()
+    frames_10_s = stream.index(encode_imu(1000, chunk.t[1000] + 100.0, chunk.dtheta[1000], chunk.dv[1000]))
+    write_stream(pty_pair.master_fd, stream[:frames_10_s])
+    wait_until(lambda: run.daemon.counters.samples_used == 1000)
+    time.sleep(0.3)
+    write_stream(pty_pair.master_fd, stream[frames_10_s:])
+    wait_until(lambda: run.daemon.counters.samples_used == len(chunk.t))
+    time.sleep(0.3)
+    run.stop()
+    statuses = [s for s in run.subscriber.status if s["counters"].get("gnss_epochs")]
+    assert statuses[0]["health"] == "starting" and statuses[-1]["health"] == "degraded"
+    assert all("gnss epochs arrive" in s["last_error"] and "none covers the IMU's time" in s["last_error"]
+               for s in statuses)
+    assert statuses[-1]["counters"]["gnss_epochs"] == len(epochs)
+
+
+def test_after_the_aid_began_a_dead_receiver_is_a_fault_across_a_restart(pty_pair, running):
+    """GIVEN fixes for the first 3 s, then none (the receiver died), and an IMU outage that restarts the alignment,
+    THEN the observations after the fixes stop are unaided (a fault) before and after the restart, none of them
+    awaits the aid, and health degrades (a fault counter rose) but never goes back to "starting"."""
+    scenario = get_scenario("seed004")
+    run = running(**daemon_sections(scenario), aiding={"inputs": ["gnss"]})
+    chunk = simulated_run(scenario, 9.0)
+    epochs = gnss_epochs(scenario.for_seed(1), 1)
+    aiding = AidingPlayback("gnss", epochs[epochs[:, 0] <= 3.0], 0.1)
+    first, rest = slice(0, 400), slice(500, 900)
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t[first], chunk.dtheta[first], chunk.dv[first], 0, aiding)
+                 + aiding.rest())
+    wait_until(lambda: run.daemon.counters.samples_used == 400)
+    time.sleep(0.3)
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t[rest], chunk.dtheta[rest], chunk.dv[rest], 500))
+    wait_until(lambda: run.daemon.counters.samples_used == 800)
+    time.sleep(0.3)
+    run.stop()
+    statuses = [s for s in run.subscriber.status if s["counters"].get("gnss_epochs")]
+    counters = statuses[-1]["counters"]
+    assert counters["restarts"] == 1 and counters["gnss_observations_awaiting_aid"] == 0
+    assert counters["gnss_unaided_observations"] >= 10 + 30   # 3-4 s before the outage, 5-8.5 s after it
+    assert "starting" not in {s["health"] for s in statuses} and "degraded" in {s["health"] for s in statuses}
 
 
 def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
     """Before the first epoch max_wait_s (nothing earlier can be interpolated); after it the stream's interval is
-    added, 1 s until a second epoch shows it; a sample after a 1-Hz fix waits for the next one, not max_wait_s."""
+    added, 1 s until a second epoch shows it, at most MAX_INTERVAL_S; a sample after a 1-Hz fix waits for the next
+    one, not max_wait_s."""
     wait = AidingWait(AidingTrack(1), max_wait_s=0.5)
     assert wait.wait_s == 0.5
     wait.track.push(np.array([[0.0, 1.0]]))
@@ -391,6 +442,9 @@ def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
         fast = AidingWait(AidingTrack(1), max_wait_s=0.5)
         fast.track.push(np.column_stack((np.arange(20) * interval, np.ones(20))))
         assert fast.wait_s == pytest.approx(0.5 + interval)
+    lone = AidingWait(AidingTrack(1), max_wait_s=0.5)          # a fix, ten minutes without sky, one fix
+    lone.track.push(np.array([[0.0, 1.0], [600.0, 1.0]]))
+    assert lone.wait_s == 0.5 + MAX_INTERVAL_S                 # not 600.5 s: the output must not stop that long
 
 
 def test_a_burst_of_gnss_glitches_in_the_kalman_stage_raises_the_screening_alarm_live(tmp_path, pty_pair, running):
