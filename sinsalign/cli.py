@@ -5,6 +5,7 @@ import argparse
 import importlib
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 DESCRIPTION = """\
@@ -59,6 +60,19 @@ def _add_alignment_options(p: argparse.ArgumentParser) -> None:
                    help="backward+forward passes over the stored first 80 s (default 3; 0 = none)")
 
 
+FIXED_BASE_OPTIONS = {"solver": "--solver", "rho": "--rho", "stored_pairs": "--stored-pairs"}
+"""Options of the fixed-base stages (OPREQ and its alternatives, the compass stage's stored data)."""
+
+
+def _refuse_fixed_base_options(args: argparse.Namespace, aided: bool) -> None:
+    """An aided mode chooses its own solvers and fine stage: a fixed-base option given with it would be ignored."""
+    given = [flag for name, flag in FIXED_BASE_OPTIONS.items() if getattr(args, name, None) is not None]
+    if aided and given:
+        from sinsalign.service.config import ConfigError
+        raise ConfigError(f"{', '.join(given)} set the fixed-base alignment; an aided mode chooses its own solvers "
+                          "(the odometer's: [aiding] solver) and has no compass stage")
+
+
 def cmd_sim(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -81,6 +95,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
 def cmd_replay(args: argparse.Namespace) -> int:
     from sinsalign.service.config import load_config
     from sinsalign.tools.replay import parse_aids, replay
+    _refuse_fixed_base_options(args, bool(args.aid))
     config = load_config(args.config, _overrides(args))
     start = time.perf_counter()
     summary = replay(args.imu_csv, args.out, config, progress=None if not args.no_progress else False,
@@ -100,12 +115,12 @@ AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot
                 "seed002": ("evaluate_transfer.seed002_table", "evaluate_transfer.plot_seed002"),
                 "seed004": ("evaluate_gnss.seed004_table", "evaluate_gnss.plot_seed004"),
                 "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
-                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates")}
+                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_transfer.plot_rates")}
 """``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
 sinsalign.tools)."""
 
 
-def _tool(name: str):
+def _tool(name: str) -> Callable:
     """The function ``module.function`` of sinsalign.tools, imported on demand (the tools pull in matplotlib)."""
     module, function = name.rsplit(".", 1)
     return getattr(importlib.import_module(f"sinsalign.tools.{module}"), function)
@@ -140,9 +155,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
     overrides = _overrides(args)
     config = load_config(args.config, overrides)   # a wrong file or option fails here, before any run
     if args.scenario in AIDED_TABLES:
-        if args.config or overrides:
-            raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config and the alignment "
-                              "options apply to a single scenario (sinsalign sim --list)")
+        if args.config or overrides or args.solvers or args.fine or args.seed_sets > 1:
+            raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config, the alignment "
+                              "options, --solvers, --fine and --seed-sets apply to a single scenario (sinsalign sim "
+                              "--list)")
         out.mkdir(parents=True, exist_ok=True)
         _aided_table(args.scenario, seeds, out)
         return 0
@@ -249,6 +265,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         overrides["daemon"] = {"record_path": args.record}
     if args.aid:
         overrides["aiding"] = {"inputs": args.aid}
+    _refuse_fixed_base_options(args, bool(args.aid))
     config = load_config(args.config, overrides)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
                         stream=sys.stderr)

@@ -265,6 +265,28 @@ def test_eval_refuses_a_configuration_for_an_aided_table(capsys: pytest.CaptureF
     assert "eval seed004 runs its table's own configurations" in capsys.readouterr().err
 
 
+def test_every_aided_eval_table_resolves_to_its_table_and_plot() -> None:
+    from sinsalign.cli import AIDED_TABLES, _tool
+    for table, plot in AIDED_TABLES.values():
+        assert callable(_tool(table)) and callable(_tool(plot))
+
+
+@pytest.mark.parametrize("options", [["--solvers"], ["--seed-sets", "2"], ["--fine"]])
+def test_eval_refuses_comparisons_for_an_aided_table(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                     options: list[str]) -> None:
+    assert main(["eval", "seed002-rates", "--out-dir", str(tmp_path), *options]) == 2
+    assert "runs its table's own configurations" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("option", [["--solver", "gls"], ["--rho", "0.01"], ["--stored-pairs", "0"]])
+def test_replay_refuses_a_fixed_base_option_in_an_aided_mode(capsys: pytest.CaptureFixture[str], tmp_path: Path,
+                                                             option: list[str]) -> None:
+    """--solver, --rho and --stored-pairs set the fixed-base stages: an aided replay ignored them silently."""
+    code = main(["replay", str(tmp_path / "imu.csv"), "--aid", f"gnss={tmp_path / 'gnss.csv'}", "--out",
+                 str(tmp_path / "r.jsonl"), "--no-progress", *option])
+    assert code == 2 and f"{option[0]} set the fixed-base alignment" in capsys.readouterr().err
+
+
 # --- fuzzing ----------------------------------------------------------------------------------------------------------
 
 SECTION_NAMES = [f.name for f in fields(Config)]

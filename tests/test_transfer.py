@@ -111,6 +111,12 @@ def test_a_1_hz_master_gives_one_pair_set_and_one_update_per_epoch_and_an_honest
         assert np.abs(phi[t >= 30.0]).max() < 0.05 and np.abs(mounting_error_deg(scenario, pipeline)).max() < 0.05
 
 
+def test_the_rate_table_runs_on_a_short_seed():
+    from sinsalign.tools.evaluate_transfer import rate_table
+    text, runs = rate_table([1], progress=False, rates_hz=(1.0,), duration_s=12.0)
+    assert "| 1 Hz |" in text and "| 0 | 9 / 0 |" in text and len(runs["1 Hz"]) == 1
+
+
 def test_a_master_stream_that_stops_repeats_and_comes_late_is_counted_and_survived():
     scenario = get_scenario("seed002")
     faults = {"dropout_s": (30.0, 35.0), "repeated": 20, "late_s": 0.2}
