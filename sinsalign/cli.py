@@ -366,17 +366,18 @@ def cmd_soak(args: argparse.Namespace) -> int:
 
 
 def cmd_watch(args: argparse.Namespace) -> int:
+    from dataclasses import replace
+
     from sinsalign.protocol.keys import UnitKeys
     from sinsalign.service.config import load_config
     from sinsalign.service.zenoh_session import open_session
     from sinsalign.tools.watch import WatchClient, watch
-    overrides = _zenoh_overrides(args)
-    z = overrides.setdefault("zenoh", {})
-    if not ({"config_file", "connect", "listen"} & z.keys()) and not args.config:
-        z.setdefault("connect", ["tcp/127.0.0.1:7447"])
-    config = load_config(args.config, overrides)
+    config = load_config(args.config, _zenoh_overrides(args))
+    z = config.zenoh
+    if not (z.connect or z.listen or z.config_file):   # neither options nor file say: the local daemon
+        config = replace(config, zenoh=replace(z, connect=("tcp/127.0.0.1:7447",)))
     session = open_session(config.zenoh)
-    client = WatchClient(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit))
+    client = WatchClient(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit), only_unit=args.unit is not None)
     try:
         watch(client, args.duration)
     except KeyboardInterrupt:
@@ -510,8 +511,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_soak)
 
     p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
-                       description="Subscribe to <prefix>/*/attitude and status and show them live. Connects to "
-                       "tcp/127.0.0.1:7447 unless -e/-l/--zenoh-config say otherwise.")
+                       description="Subscribe to <prefix>/*/attitude and status (with --unit: that unit's) and "
+                       "show them live. Connects to tcp/127.0.0.1:7447 unless -e/-l/--zenoh-config or the "
+                       "--config file's [zenoh] table say otherwise.")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: Ctrl-C)")
     p.add_argument("--config", metavar="FILE", help="TOML configuration ([zenoh] table)")
     _add_zenoh_options(p)

@@ -25,16 +25,17 @@ class UnitView:
 
 @dataclass(slots=True)
 class WatchClient:
-    """Keeps the latest attitude and status of every unit under ``keys.prefix``."""
+    """Keeps the latest attitude and status of every unit under ``keys.prefix`` (``only_unit``: of ``keys.unit``)."""
 
     session: zenoh.Session
     keys: UnitKeys
+    only_unit: bool = False
     units: dict[str, UnitView] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)
     _entities: list = field(default_factory=list)
 
     def __post_init__(self) -> None:
-        units = self.keys.all_units
+        units = f"{self.keys.prefix}/{self.keys.unit}" if self.only_unit else self.keys.all_units
         self._entities = [
             self.session.declare_subscriber(f"{units}/attitude", self._on_attitude),
             self.session.declare_subscriber(f"{units}/status", self._on_status),
