@@ -115,7 +115,7 @@ AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot
                 "seed002": ("evaluate_transfer.seed002_table", "evaluate_transfer.plot_seed002"),
                 "seed004": ("evaluate_gnss.seed004_table", "evaluate_gnss.plot_seed004"),
                 "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
-                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_transfer.plot_rates")}
+                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates")}
 """``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
 sinsalign.tools)."""
 

@@ -10,7 +10,7 @@ the truth (φ_U ≈ heading error), in degrees.
 from __future__ import annotations
 
 from collections import Counter
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -140,25 +140,36 @@ def rate_table(seeds: Sequence[int], rates_hz: Sequence[float] = RATES_HZ, progr
              f"in 2σ from {HONEST_FROM_S:g} s | converged > 3σ | gaps | "
              "observations before the first fix / unaided after | velocity updates |",
              "|---|" + "---|" * 8]
+
+    def row(label: str, runs: list[RunResult]) -> str:
+        honest, counts = fine_honesty(runs, HONEST_FROM_S), summed_counters(runs)
+        early, mid = _stats(runs, CHECK_TIMES_S[0]), _stats(runs, MEAN_AT_S)
+        return (f"| {label} | {_cell(early, 'mae', '.4f')} | {_cell(mid, 'mae', '.4f')} | "
+                f"{_cell(mid, 'mean', '+.4f')} | {100 * honest.inside_2sigma:.1f} % | "
+                f"{honest.converged_beyond_3sigma} | {counts.get('gaps', 0)} | "
+                f"{counts.get('gnss_observations_awaiting_aid', 0)} / {counts.get('gnss_unaided_observations', 0)} | "
+                f"{counts.get('gnss_vel_accepted', 0)} |")
+
+    return rate_rows(SCENARIO, seeds, rates_hz, row, lines, progress, duration_s)
+
+
+def rate_rows(scenario: str, seeds: Sequence[int], rates_hz: Sequence[float],
+              row: Callable[[str, list[RunResult]], str], lines: list[str], progress: bool = True,
+              duration_s: float | None = None) -> tuple[str, dict[str, list[RunResult]]]:
+    """The runs of ``scenario`` with its aiding sensor at each of ``rates_hz`` (labelled "N Hz"), and the Markdown
+    table of ``lines`` (its heading) with ``row(label, runs)`` per rate."""
     all_runs: dict[str, list[RunResult]] = {}
     for rate in rates_hz:
         label = f"{rate:g} Hz"
-        runs = monte_carlo(SCENARIO, seeds, progress=progress, label=label, duration_s=duration_s, aid_rate_hz=rate)
-        all_runs[label] = runs
-        honest, counts = fine_honesty(runs, HONEST_FROM_S), summed_counters(runs)
-        early, mid = _stats(runs, CHECK_TIMES_S[0]), _stats(runs, MEAN_AT_S)
-        lines.append(f"| {label} | {_cell(early, 'mae', '.4f')} | {_cell(mid, 'mae', '.4f')} | "
-                     f"{_cell(mid, 'mean', '+.4f')} | {100 * honest.inside_2sigma:.1f} % | "
-                     f"{honest.converged_beyond_3sigma} | {counts.get('gaps', 0)} | "
-                     f"{counts.get('gnss_observations_awaiting_aid', 0)} / "
-                     f"{counts.get('gnss_unaided_observations', 0)} | "
-                     f"{counts.get('gnss_vel_accepted', 0)} |")
+        all_runs[label] = monte_carlo(scenario, seeds, progress=progress, label=label, duration_s=duration_s,
+                                      aid_rate_hz=rate)
+        lines.append(row(label, all_runs[label]))
     return "\n".join(lines), all_runs
 
 
-def plot_rates(runs_by_rate: dict[str, list[RunResult]], path: str | Path) -> Path:
-    """:func:`plot_heading_runs` of the rate table's runs."""
-    return plot_heading_runs(runs_by_rate, path, HONEST_FROM_S)
+def plot_rates(runs_by_rate: dict[str, list[RunResult]], path: str | Path, from_s: float = HONEST_FROM_S) -> Path:
+    """:func:`plot_heading_runs` of a rate table's runs, σ honesty judged from ``from_s``."""
+    return plot_heading_runs(runs_by_rate, path, from_s)
 
 
 def plot_seed004(runs_by_variant: dict[str, list[RunResult]], path: str | Path) -> Path:

@@ -30,7 +30,7 @@ from .evaluate import (
     run_parallel,
 )
 from .evaluate_aided import fine_honesty
-from .evaluate_gnss import plot_heading_runs, summed_counters
+from .evaluate_gnss import plot_heading_runs, rate_rows, summed_counters
 from .sim.aiding import master_epochs
 from .sim.imu import simulate
 from .sim.scenarios import SEED002_MOUNT_DEG, Scenario, get_scenario, seed002_flight
@@ -112,24 +112,17 @@ def rate_table(seeds: Sequence[int], progress: bool = True, rates_hz: Sequence[f
              f"| master rate | slave @{AT_S[0]:g} s | slave @{AT_S[1]:g} s | mounting at the end | "
              f"in 2σ from {HONEST_FROM_S:g} s (heading) | converged > 3σ (any axis) | gaps | "
              "awaiting / unaided observations | velocity / attitude updates |", "|---|" + "---|" * 8]
-    all_runs: dict[str, list[RunResult]] = {}
-    for rate in rates_hz:
-        label = f"{rate:g} Hz"
-        runs = monte_carlo(SCENARIO, seeds, progress=progress, label=label, duration_s=duration_s, aid_rate_hz=rate)
-        all_runs[label] = runs
+
+    def row(label: str, runs: list[RunResult]) -> str:
         mounting = np.sqrt(np.mean([r.mount_error_deg**2 for r in runs], axis=0))
         c = summed_counters(runs)
-        lines.append(f"| {label} | {_axes(rms_at(runs, AT_S[0]))} | {_axes(rms_at(runs, AT_S[1]))} | "
-                     f"{_axes(mounting)} | {100 * fine_honesty(runs, HONEST_FROM_S).inside_2sigma:.1f} % | "
-                     f"{converged_beyond_3sigma_any_axis(runs)} | {c.get('gaps', 0)} | "
-                     f"{c.get('master_observations_awaiting_aid', 0)} / {c.get('master_unaided_observations', 0)} | "
-                     f"{c.get('master_vel_accepted', 0)} / {c.get('master_att_accepted', 0)} |")
-    return "\n".join(lines), all_runs
+        return (f"| {label} | {_axes(rms_at(runs, AT_S[0]))} | {_axes(rms_at(runs, AT_S[1]))} | "
+                f"{_axes(mounting)} | {100 * fine_honesty(runs, HONEST_FROM_S).inside_2sigma:.1f} % | "
+                f"{converged_beyond_3sigma_any_axis(runs)} | {c.get('gaps', 0)} | "
+                f"{c.get('master_observations_awaiting_aid', 0)} / {c.get('master_unaided_observations', 0)} | "
+                f"{c.get('master_vel_accepted', 0)} / {c.get('master_att_accepted', 0)} |")
 
-
-def plot_rates(runs_by_rate: dict[str, list[RunResult]], path: str | Path) -> Path:
-    """:func:`plot_heading_runs` of the rate table's runs."""
-    return plot_heading_runs(runs_by_rate, path, HONEST_FROM_S)
+    return rate_rows(SCENARIO, seeds, rates_hz, row, lines, progress, duration_s)
 
 
 COMPARISON_AT_S = (2.0, 5.0, 10.0, 60.0)
