@@ -190,10 +190,11 @@ class GnssSource:
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:
         """C_{n(t)}^{n0} at ``elapsed_s``: at the position of the latest sample with a fix at or before it
         (:meth:`follow`: a sample's own, interpolated between fixes by the aiding track), carried on at its
-        velocity through a gap in the fixes; the identity before the first observation."""
-        if self._C_e_n0 is None or len(self._positions) == 0:
+        velocity through a gap in the fixes; the identity before the first observation and before the first fix (a
+        later fix, carried back, would make a record before it depend on whether that fix had come: live or replay)."""
+        k = int(np.searchsorted(self._positions[:, 0], elapsed_s, side="right")) - 1
+        if self._C_e_n0 is None or k < 0:
             return np.eye(3)
-        k = max(int(np.searchsorted(self._positions[:, 0], elapsed_s, side="right")) - 1, 0)
         t, lat, lon, h, v_east, v_north = self._positions[k]
         R_M, R_N = radii(lat)
         dt = elapsed_s - t
