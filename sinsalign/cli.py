@@ -184,7 +184,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
+    from sinsalign.service.config import ConfigError
     from sinsalign.tools.benchmark import bench_aided_latency, bench_latency, bench_replay, bench_stream_memory
+    if 0.0 < args.stream_hours < 1.0 / 60.0 or args.stream_hours < 0.0:
+        raise ConfigError(f"--stream-hours {args.stream_hours:g}: at least one minute of data (1/60 h), or 0 to skip")
     r = bench_replay(duration_s=args.seconds)
     print(f"replay (CSV → JSONL) of {r.samples} frames: {r.frames_per_s:,.0f} frames/s; "
           f"pipeline alone {r.samples / r.pipeline_seconds:,.0f} frames/s")
@@ -351,7 +354,11 @@ def cmd_fuzz(args: argparse.Namespace) -> int:
 
 
 def cmd_soak(args: argparse.Namespace) -> int:
+    from sinsalign.service.config import ConfigError
     from sinsalign.tools.soak import soak
+    if not 0.0 < args.report_every <= 3600.0 * args.hours:
+        raise ConfigError(f"--hours {args.hours:g} must hold at least one --report-every interval "
+                          f"({args.report_every:g} s of data), and that interval must be > 0")
     print(f"soak: {args.hours:g} h of 200-Hz frames through 'sinsalign serve' on a pty, flat out", file=sys.stderr)
 
     def show(s) -> None:
