@@ -154,15 +154,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
     out = Path(args.out_dir)
     overrides = _overrides(args)
     config = load_config(args.config, overrides)   # a wrong file or option fails here, before any run
-    if args.scenario in AIDED_TABLES:
-        if args.config or overrides or args.solvers or args.fine or args.seed_sets > 1:
-            raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config, the alignment "
-                              "options, --solvers, --fine and --seed-sets apply to a single scenario (sinsalign sim "
-                              "--list)")
-        out.mkdir(parents=True, exist_ok=True)
+    aided = args.scenario in AIDED_TABLES
+    if aided and (args.config or overrides or args.solvers or args.fine or args.seed_sets > 1):
+        raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config, the alignment "
+                          "options, --solvers, --fine and --seed-sets apply to a single scenario (sinsalign sim "
+                          "--list)")
+    out.mkdir(parents=True, exist_ok=True)
+    if aided:
         _aided_table(args.scenario, seeds, out)
         return 0
-    out.mkdir(parents=True, exist_ok=True)
     runs = monte_carlo(args.scenario, seeds, config.as_dict())
     text = scenario_table(args.scenario, runs)
     if args.seed_sets > 1:

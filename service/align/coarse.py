@@ -113,8 +113,10 @@ class InertialCoarseAlignment:
         self._obs_count = int(counts[-1])
         if aid is not None:
             usable = np.isfinite(aid[due]).all(axis=1)
-            waiting = 0 if self.aid_started else int(np.argmax(usable)) if usable.any() else len(due)
-            self.aid_started = self.aid_started or bool(usable.any())
+            waiting = 0   # observations before the first usable one, while the aid has not started
+            if not self.aid_started:
+                self.aid_started = bool(usable.any())
+                waiting = int(np.argmax(usable)) if self.aid_started else len(due)
             self.observations_awaiting_aid += waiting
             self.unaided_observations += int(len(due) - waiting - usable.sum())
             due = due[usable]
