@@ -33,6 +33,27 @@ Live:
 """
 
 
+def _number_above(minimum: float, inclusive: bool = False, kind: type = float) -> Callable[[str], float]:
+    """An argparse type: a finite number above ``minimum`` (or at it, if ``inclusive``), else a usage error."""
+    bound = f"{'at least' if inclusive else 'above'} {minimum:g}"
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a{'n integer' if kind is int else ' number'}") from None
+        if not (value >= minimum if inclusive else value > minimum) or value != value or abs(value) == float("inf"):
+            raise argparse.ArgumentTypeError(f"{text} must be {bound}")
+        return value
+    return parse
+
+
+POSITIVE = _number_above(0.0)
+NON_NEGATIVE = _number_above(0.0, inclusive=True)
+POSITIVE_INT = _number_above(1, inclusive=True, kind=int)
+SEED = _number_above(0, inclusive=True, kind=int)
+
+
 def _overrides(args: argparse.Namespace) -> dict:
     alignment = {k: v for k, v in (("solver", args.solver), ("request_rho", args.rho),
                                    ("obs_interval_s", args.obs_interval)) if v is not None}
@@ -74,18 +95,14 @@ def _refuse_fixed_base_options(args: argparse.Namespace, aided: bool) -> None:
 
 
 def cmd_sim(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
     from sinsalign.tools.sim.files import write_simulation
-    from sinsalign.tools.sim.scenarios import SCENARIOS, get_scenario
+    from sinsalign.tools.sim.scenarios import SCENARIOS, seed_run
     if args.list or not args.scenario:
         for name, s in SCENARIOS.items():
             print(f"{name:22s} {s.description}")
         print("\nEach name also runs without sensor errors as NAME-ideal.")
         return 0
-    scenario = get_scenario(args.scenario)
-    if args.duration:
-        scenario = replace(scenario, duration_s=args.duration)
+    scenario = seed_run(args.scenario, args.seed, args.duration)
     files = write_simulation(scenario, args.seed, args.out_dir)
     aids = "".join(f" and {path}" for path in (files.odo_csv, files.gnss_csv, files.master_csv) if path)
     print(f"wrote {files.imu_csv}, {files.truth_csv}{aids} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
@@ -186,7 +203,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
 def cmd_benchmark(args: argparse.Namespace) -> int:
     from sinsalign.service.config import ConfigError
     from sinsalign.tools.benchmark import bench_aided_latency, bench_latency, bench_replay, bench_stream_memory
-    if 0.0 < args.stream_hours < 1.0 / 60.0 or args.stream_hours < 0.0:
+    if 0.0 < args.stream_hours < 1.0 / 60.0:
         raise ConfigError(f"--stream-hours {args.stream_hours:g}: at least one minute of data (1/60 h), or 0 to skip")
     r = bench_replay(duration_s=args.seconds)
     print(f"replay (CSV → JSONL) of {r.samples} frames: {r.frames_per_s:,.0f} frames/s; "
@@ -291,14 +308,14 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from sinsalign.service.align.conventions import DEG
     from sinsalign.tools.sim.aiding import scenario_aiding
     from sinsalign.tools.sim.imu import simulate
-    from sinsalign.tools.sim.scenarios import get_scenario
+    from sinsalign.tools.sim.scenarios import seed_run
     from sinsalign.tools.virtual_imu import AidingPlayback, FramePlayer, PtyPair
     if args.log:
         chunks = open_imu_log(args.log).blocks()
         what = args.log
     else:
-        s = get_scenario(args.scenario)
-        duration = args.duration or s.duration_s
+        s = seed_run(args.scenario, args.seed, args.duration)
+        duration = s.duration_s
         chunks = ((c.t, c.dtheta, c.dv) for c in simulate(s.motion, s.site, s.errors, s.rate_hz, duration, args.seed))
         what = f"{args.scenario} seed {args.seed} (site lat {s.site.lat / DEG:.3f}°, "\
                f"{s.rate_hz:g} Hz: serve with --config giving [site] and [imu] to match)"
@@ -356,9 +373,9 @@ def cmd_fuzz(args: argparse.Namespace) -> int:
 def cmd_soak(args: argparse.Namespace) -> int:
     from sinsalign.service.config import ConfigError
     from sinsalign.tools.soak import soak
-    if not 0.0 < args.report_every <= 3600.0 * args.hours:
+    if args.report_every > 3600.0 * args.hours:
         raise ConfigError(f"--hours {args.hours:g} must hold at least one --report-every interval "
-                          f"({args.report_every:g} s of data), and that interval must be > 0")
+                          f"({args.report_every:g} s of data)")
     print(f"soak: {args.hours:g} h of 200-Hz frames through 'sinsalign serve' on a pty, flat out", file=sys.stderr)
 
     def show(s) -> None:
@@ -405,8 +422,8 @@ def build_parser() -> argparse.ArgumentParser:
                        "simulated biases in its comments) and OUT_DIR/imu_truth.csv. Increments are exact "
                        "(Gauss-Legendre integrals of the analytic motion). --list shows the scenarios.")
     p.add_argument("scenario", nargs="?", help="scenario name, e.g. seed000-swing, static, seed000-turntable")
-    p.add_argument("--seed", type=int, default=1, help="noise seed (default 1)")
-    p.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration")
+    p.add_argument("--seed", type=SEED, default=1, help="noise seed (default 1)")
+    p.add_argument("--duration", type=POSITIVE, metavar="S", help="override the scenario's duration")
     p.add_argument("--out-dir", default="out/sim", help="output folder (default out/sim)")
     p.add_argument("--list", action="store_true", help="list the scenarios")
     p.set_defaults(func=cmd_sim)
@@ -441,9 +458,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty), or seed004-rates for "
                    "the same flight with 50/10/5/1-Hz receivers (120 s: accuracy, σ honesty, gaps), or "
                    "seed002-rates for the transfer alignment with the master INS at 10/5/2/1 Hz")
-    p.add_argument("--seeds", type=int, default=20, help="number of seeds (default 20)")
-    p.add_argument("--first-seed", type=int, default=0)
-    p.add_argument("--seed-sets", type=int, default=1, metavar="K",
+    p.add_argument("--seeds", type=POSITIVE_INT, default=20, help="number of seeds (default 20)")
+    p.add_argument("--first-seed", type=SEED, default=0)
+    p.add_argument("--seed-sets", type=POSITIVE_INT, default=1, metavar="K",
                    help="run K disjoint sets of --seeds seeds and add a table of the last window per set (how much a "
                    "20-seed figure moves with the seeds; issue 3's figures: --seeds 20 --seed-sets 5)")
     p.add_argument("--solvers", action="store_true", help="also compare OPREQ, q-method and REQUEST gains")
@@ -456,10 +473,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("benchmark", help="benchmarks: replay frames/s, per-sample latency, RSS over a long stream",
                        description="Numbers, not pass/fail. --stream-hours 24 streams a day of 200-Hz data "
                        "generated on the fly and reports RSS every simulated hour.")
-    p.add_argument("--seconds", type=float, default=600.0, help="length of the replayed log (default 600 s)")
-    p.add_argument("--stream-hours", type=float, default=0.0, help="hours of streamed data (0 = skip; try 24)")
+    p.add_argument("--seconds", type=POSITIVE, default=600.0, help="length of the replayed log (default 600 s)")
+    p.add_argument("--stream-hours", type=NON_NEGATIVE, default=0.0, help="hours of streamed data (0 = skip; try 24)")
     p.add_argument("--live", action="store_true", help="also the live daemon: latency frame → attitude, CPU, ingest")
-    p.add_argument("--live-seconds", type=float, default=20.0, help="seconds of 200-Hz frames for --live")
+    p.add_argument("--live-seconds", type=POSITIVE, default=20.0, help="seconds of 200-Hz frames for --live")
     p.set_defaults(func=cmd_benchmark)
 
     p = sub.add_parser("serve", help="run the daemon: serial and/or Zenoh IMU in, attitude and status out",
@@ -490,38 +507,39 @@ def build_parser() -> argparse.ArgumentParser:
                        "the printed NAME within --start-delay seconds.")
     p.add_argument("--scenario", default="seed000-swing", help="simulated scenario (sinsalign sim --list)")
     p.add_argument("--log", metavar="IMU.csv", help="play this IMU log instead of a scenario")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--duration", type=float, metavar="S", help="scenario length (default: the scenario's)")
-    p.add_argument("--speed", type=float, default=1.0, help="× real time (default 1)")
+    p.add_argument("--seed", type=SEED, default=1)
+    p.add_argument("--duration", type=POSITIVE, metavar="S", help="scenario length (default: the scenario's)")
+    p.add_argument("--speed", type=POSITIVE, default=1.0, help="× real time (default 1)")
     p.add_argument("--port", metavar="PATH", help="write to this serial device instead of a new pty")
-    p.add_argument("--start-delay", type=float, default=3.0, metavar="S", help="wait before playing (default 3 s)")
+    p.add_argument("--start-delay", type=NON_NEGATIVE, default=3.0, metavar="S",
+                   help="wait before playing (default 3 s)")
     p.add_argument("--aid", action="store_true", help="also play the scenario's aiding sensor (odometer of seed003-*, "
                    "GNSS of seed004, master INS of seed002) as serial aiding frames among the IMU frames; serve "
                    "with the [aiding] table printed")
-    p.add_argument("--aid-late", type=float, default=0.2, metavar="S",
+    p.add_argument("--aid-late", type=NON_NEGATIVE, default=0.2, metavar="S",
                    help="how far behind the IMU frames the aiding epochs come (s of data, default 0.2)")
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("fuzz", help="long random-input run of the serial and msgpack decoders",
                        description="Feed random bytes, mutated and truncated frames into the serial decoder and "
                        "random or mutated msgpack into the message decoders; exit 1 if any exception escapes.")
-    p.add_argument("--inputs", type=int, default=1_000_000, help="random inputs to the serial decoder (1e6)")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--inputs", type=POSITIVE_INT, default=1_000_000, help="random inputs to the serial decoder (1e6)")
+    p.add_argument("--seed", type=SEED, default=0)
     p.set_defaults(func=cmd_fuzz)
 
     p = sub.add_parser("soak", help="hours of simulated data through the live daemon: RSS and latency over time",
                        description="Run 'sinsalign serve' in its own process on a pty and write HOURS of 200-Hz "
                        "frames (static base with noise, generated on the fly) as fast as it reads them; report "
                        "the daemon's RSS and the 1-Hz attitude latency every REPORT_EVERY simulated seconds.")
-    p.add_argument("--hours", type=float, default=24.0)
-    p.add_argument("--report-every", type=float, default=3600.0, metavar="S", help="simulated seconds per report")
+    p.add_argument("--hours", type=POSITIVE, default=24.0)
+    p.add_argument("--report-every", type=POSITIVE, default=3600.0, metavar="S", help="simulated seconds per report")
     p.set_defaults(func=cmd_soak)
 
     p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
                        description="Subscribe to <prefix>/*/attitude and status (with --unit: that unit's) and "
                        "show them live. Connects to tcp/127.0.0.1:7447 unless -e/-l/--zenoh-config or the "
                        "--config file's [zenoh] table say otherwise.")
-    p.add_argument("--duration", type=float, metavar="S", help="stop after S seconds (default: Ctrl-C)")
+    p.add_argument("--duration", type=POSITIVE, metavar="S", help="stop after S seconds (default: Ctrl-C)")
     p.add_argument("--config", metavar="FILE", help="TOML configuration ([zenoh] table)")
     _add_zenoh_options(p)
     p.set_defaults(func=cmd_watch)
@@ -531,10 +549,11 @@ def build_parser() -> argparse.ArgumentParser:
                        "(Zenoh peer on loopback, multicast off), watch it live, and end with the heading error "
                        "against the simulated truth and the run's physical limit.")
     p.add_argument("--scenario", default="seed000-swing")
-    p.add_argument("--seed", type=int, default=1)
-    p.add_argument("--speed", type=float, default=10.0, help="× real time (default 10: 200 s in 20 s)")
-    p.add_argument("--realtime", action="store_true", help="play at real time (same as --speed 1)")
-    p.add_argument("--duration", type=float, metavar="S", help="scenario length (default: the scenario's)")
+    p.add_argument("--seed", type=SEED, default=1)
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument("--speed", type=POSITIVE, default=10.0, help="× real time (default 10: 200 s in 20 s)")
+    pace.add_argument("--realtime", action="store_true", help="play at real time (same as --speed 1)")
+    p.add_argument("--duration", type=POSITIVE, metavar="S", help="scenario length (default: the scenario's)")
     p.add_argument("--no-watch", action="store_true", help="no live view, summary only")
     p.add_argument("--out-dir", default="out/demo", help="the daemon's recording of its input goes here")
     p.set_defaults(func=cmd_demo)

@@ -287,8 +287,7 @@ def test_replay_refuses_a_fixed_base_option_in_an_aided_mode(capsys: pytest.Capt
     assert code == 2 and f"{option[0]} set the fixed-base alignment" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("argv", [["benchmark", "--stream-hours", "0.001"], ["benchmark", "--stream-hours", "-1"],
-                                  ["soak", "--hours", "0.1"], ["soak", "--hours", "1", "--report-every", "0"]])
+@pytest.mark.parametrize("argv", [["benchmark", "--stream-hours", "0.001"], ["soak", "--hours", "0.1"]])
 def test_benchmark_and_soak_refuse_a_run_too_short_to_report(capsys: pytest.CaptureFixture[str],
                                                              argv: list[str]) -> None:
     """Too short a stream or soak ended in a raw IndexError after the run; now a clear error before it."""

@@ -25,7 +25,7 @@ from sinsalign.service.zenoh_session import open_session
 from .evaluate import run_limit_deg
 from .sim.aiding import scenario_aiding
 from .sim.imu import simulate
-from .sim.scenarios import daemon_sections, get_scenario
+from .sim.scenarios import daemon_sections, seed_run
 from .virtual_imu import AidingPlayback, FramePlayer, PtyPair
 from .watch import WatchClient, watch
 
@@ -54,9 +54,7 @@ AIDING_LATE_S = 0.2
 
 def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: bool = True,
              duration_s: float | None = None) -> DemoResult:
-    scenario = get_scenario(scenario_name)
-    if duration_s:
-        scenario = replace(scenario, duration_s=duration_s)
+    scenario = seed_run(scenario_name, seed, duration_s)
     out_dir.mkdir(parents=True, exist_ok=True)
     port = free_loopback_port()
     aid = scenario_aiding(scenario, seed)

@@ -256,3 +256,10 @@ def get_scenario(name: str) -> Scenario:
     if base not in SCENARIOS:
         raise KeyError(f"unknown scenario {name!r}; known: {', '.join(sorted(SCENARIOS))} (each also as NAME-ideal)")
     return SCENARIOS[base].without_errors() if name.endswith("-ideal") else SCENARIOS[base]
+
+
+def seed_run(name: str, seed: int, duration_s: float | None = None) -> Scenario:
+    """The named scenario as seed ``seed`` runs it (its own bias signs, if drawn), ``duration_s`` long if given:
+    what ``sim``, ``bench`` and ``demo`` play for the same name and seed, so they play the same data."""
+    scenario = get_scenario(name).for_seed(seed)
+    return replace(scenario, duration_s=duration_s) if duration_s else scenario
