@@ -22,6 +22,8 @@ from typing import TextIO
 import numpy as np
 
 IMU_COLUMNS = ("t", "dthx", "dthy", "dthz", "dvx", "dvy", "dvz")
+IMU_WIDTH = len(IMU_COLUMNS)
+"""Floats per IMU sample wherever samples travel as rows: t (s), Δθ (3) rad, Δv (3) m/s."""
 REQUIRED_KEYS = ("lat_deg", "lon_deg", "height_m", "rate_hz")
 DATASHEET_KEYS = ("gyro_bias_deg_h", "gyro_arw_deg_rth", "acc_bias_ug", "acc_vrw_ug_rthz")
 TRUTH_COLUMNS = ("t", "heading_deg", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz")

@@ -29,12 +29,24 @@ import numpy as np
 
 from ..protocol.aiding_log import KINDS
 from ..protocol.counters import Counters
+from ..protocol.imu_log import IMU_WIDTH
 
 if TYPE_CHECKING:
     from .config import AidingConfig
 
 TIME_TOLERANCE_S = 1e-6
 """Time stamps travel as integer ns or decimal text: an IMU sample this close to an epoch is at it."""
+
+
+def with_room(buffer: np.ndarray, rows: int, limit: int | None = None) -> np.ndarray:
+    """``buffer`` (R, C) if it has ``rows`` rows, else a copy at least twice as long (at most ``limit`` rows) with the
+    same rows first: a store that grows in doublings, not on every push."""
+    if rows <= len(buffer):
+        return buffer
+    size = max(rows, 2 * len(buffer))
+    bigger = np.empty((size if limit is None else min(size, limit), buffer.shape[1]))
+    bigger[:len(buffer)] = buffer
+    return bigger
 
 
 @dataclass(slots=True)
@@ -126,8 +138,7 @@ class AidingTrack:
                 self.counters.gaps += int(not bridged)
                 # a ring: the median does not care about the order
                 self._intervals[(self.counters.epochs - 1) % INTERVAL_HISTORY] = t - last
-            if self._n == len(self._epochs):
-                self._epochs = np.concatenate((self._epochs, np.empty_like(self._epochs)))[:max(self.capacity, 1)]
+            self._epochs = with_room(self._epochs, self._n + 1, self.capacity)
             self._epochs[self._n, :_VALUES] = t, self.counters.epochs, bridged
             self._epochs[self._n, _VALUES:] = row[1:]
             self._n += 1
@@ -254,23 +265,29 @@ class AidingWait:
     def __init__(self, track: AidingTrack, max_wait_s: float) -> None:
         self.track = track
         self.max_wait_s = max_wait_s
-        self._rows = np.empty((0, 7))
+        self._rows = np.empty((256, IMU_WIDTH))   # grows to the most ever held (the wait × the IMU rate), then stays
+        self._n = 0
 
     def push(self, rows: np.ndarray) -> None:
-        """IMU samples (N, 7): t, Δθ (3), Δv (3), in time order."""
-        self._rows = np.concatenate((self._rows, rows))
+        """IMU samples (N, :data:`IMU_WIDTH`): t, Δθ (3), Δv (3), in time order."""
+        end = self._n + len(rows)
+        self._rows = with_room(self._rows, end)
+        self._rows[self._n:end] = rows
+        self._n = end
 
     def release(self, everything: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """(samples (M, 7), aiding rows (M, 1 + width): epoch number, values (:meth:`AidingTrack.aid_at`)) of the
-        samples whose wait is over (all if ``everything``)."""
-        t = self._rows[:, 0]
+        """(samples (M, :data:`IMU_WIDTH`), aiding rows (M, 1 + width): epoch number, values
+        (:meth:`AidingTrack.aid_at`)) of the samples whose wait is over (all if ``everything``)."""
+        t = self._rows[:self._n, 0]
         if len(t) == 0:
-            return self._rows, np.empty((0, 1 + self.track.width))
+            return np.empty((0, IMU_WIDTH)), np.empty((0, 1 + self.track.width))
         latest = self.track.latest_time
         until = np.inf if everything else max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
                                               t[-1] - self.wait_s + TIME_TOLERANCE_S)
         n = int(np.searchsorted(t, until, side="right"))
-        out, self._rows = self._rows[:n], self._rows[n:]
+        out = self._rows[:n].copy()
+        self._rows[:self._n - n] = self._rows[n:self._n]
+        self._n -= n
         aid = self.track.aid_at(out[:, 0])
         if n:
             self.track.release(float(out[-1, 0]))
@@ -278,7 +295,7 @@ class AidingWait:
 
     @property
     def held(self) -> int:
-        return len(self._rows)
+        return self._n
 
     @property
     def wait_s(self) -> float:

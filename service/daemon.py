@@ -90,8 +90,8 @@ class Daemon:
         ad = config.aiding
         self.tracks = {kind: AidingTrack.configured(kind, ad) for kind in self.aid_kinds}
         # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
-        self.aid_kind: str | None = self.aid_kinds[0] if self.aid_kinds else None
-        self._wait = None if self.aid_kind is None else AidingWait(self.tracks[self.aid_kind], ad.max_wait_s)
+        self._wait = (AidingWait(self.tracks[self.pipeline.aid_kind], ad.max_wait_s) if self.pipeline.aid_width
+                      else None)
         self.gate = SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples)
         self.decoder = FrameDecoder()
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
@@ -133,7 +133,7 @@ class Daemon:
         """A fresh pipeline after an outage: the old one's counts carry on in the status, and an aid that had begun
         stays begun (an observation without it is a dropout, not a wait)."""
         pipeline = self._new_pipeline()
-        pipeline.coarse.aid_started = self.pipeline.coarse.aid_started
+        pipeline.carry_aid_start(self.pipeline)
         with self._pipeline_lock:
             self._disturbances_before += self.pipeline.disturbances
             self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
@@ -366,7 +366,8 @@ class Daemon:
         """What an aided mode without a usable aiding value yet waits for, once IMU data have come."""
         if self.t_last is None:
             return None
-        track, kind = self.tracks[self.aid_kind], self.aid_kind
+        kind = self.pipeline.aid_kind
+        track = self.tracks[kind]
         if track.latest_time is None:
             return (f"no {kind} epoch yet after {self.t_last - self.t_first:.1f} s of IMU data: the aided alignment "
                     f"starts with the first (check the receiver, --aid {kind}, its topic or serial frames)")

@@ -10,6 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
 from .align.compass import GainSchedule
@@ -26,9 +27,9 @@ from .config import Config, ConfigError
 INITIAL_TILT_SIGMA_DEG = 0.1
 INITIAL_HEADING_SIGMA_DEG = 1.5
 """1-sigma errors assumed for an attitude given from outside (compass alone, seed 001's start)."""
-AID_EPOCH_COLUMN = 7
-"""The layout of the samples the pipeline holds: t, Δθ (3), Δv (3); an aided pipeline's then the aiding epoch's
-number and the aiding values (``aid_width``)."""
+AID_EPOCH_COLUMN = IMU_WIDTH
+"""The layout of the samples the pipeline holds: the IMU row (t, Δθ (3), Δv (3)); an aided pipeline's then the aiding
+epoch's number and the aiding values (``aid_width``)."""
 
 
 def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> SensorGrade:
@@ -145,6 +146,11 @@ class AlignmentPipeline:
     def awaiting_aid(self) -> bool:
         """An aided pipeline whose aid has not given its first value yet: the alignment has not started."""
         return bool(self.aid_width) and not self.coarse.aid_started
+
+    def carry_aid_start(self, previous: AlignmentPipeline) -> None:
+        """A fresh pipeline that replaces ``previous`` (a restart after an outage): an aid that had begun there stays
+        begun here, so an observation without it is a dropout, not a wait."""
+        self.coarse.aid_started = self.coarse.aid_started or previous.coarse.aid_started
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment

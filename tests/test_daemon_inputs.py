@@ -447,6 +447,25 @@ def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
     assert lone.wait_s == 0.5 + MAX_INTERVAL_S                 # not 600.5 s: the output must not stop that long
 
 
+def test_the_wait_gives_back_every_sample_once_in_order_whatever_the_pushes():
+    """The held samples live in one store that grows in doublings (they used to be re-concatenated on every push):
+    pushes of 1 to 700 rows, past the store's first size, come back whole, in order, and a released block is the
+    caller's (a later push does not overwrite it)."""
+    rng = np.random.default_rng(4)
+    rows = np.column_stack((np.arange(1, 3001) / 200.0, rng.normal(size=(3000, 6))))
+    wait = AidingWait(AidingTrack(1), max_wait_s=2.0)   # no epoch ever: a sample leaves 2 s of data after it
+    released, start = [], 0
+    for size in (1, 700, 3, 500, 1, 650, 145, 1000):
+        wait.push(rows[start:start + size])
+        start += size
+        out, aid = wait.release()
+        assert np.isnan(aid[:, 1]).all() and (len(out) == 0 or out[-1, 0] <= rows[start - 1, 0] - 2.0 + 1e-6)
+        released.append(out)
+        assert wait.held == start - sum(len(r) for r in released)
+    assert released[1].size and released[1][0, 0] == rows[0, 0]   # still the first rows after later pushes
+    out, _ = wait.release(everything=True)
+    assert np.array_equal(np.concatenate([*released, out]), rows) and wait.held == 0
+
 def test_a_burst_of_gnss_glitches_in_the_kalman_stage_raises_the_screening_alarm_live(tmp_path, pty_pair, running):
     """GIVEN a 2-s GNSS glitch (20 m/s east, 50 m north) after the Kalman stage has started, THEN the gate turns
     the glitch fixes away (counted as screening, not faults), a status reports health "degraded" for the burst,
