@@ -8,7 +8,7 @@ only the columns and the optional comment keys differ.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,12 +27,26 @@ class AidingKind:
     has_lever: bool                  # optional lever arm keys (m, body axes), default 0
 
 
+def stated_aiding(kind: str, keys: Mapping[str, object]) -> dict[str, object]:
+    """The ``[aiding]`` configuration that an aiding log's comment ``keys`` state of its sensor (they override the
+    configuration's): each noise figure above 0 (a 0 states an ideal sensor, which no filter can weigh: the
+    configuration's stays) and, for a kind with a lever arm, the lever arm once any of its keys is given."""
+    spec = KINDS[kind]
+    out: dict[str, object] = {_CONFIG_KEYS.get((kind, key), f"{kind}_{key}"): float(keys[key])
+                              for key in spec.std_keys if keys.get(key)}
+    if spec.has_lever and any(key in keys for key in LEVER_KEYS):
+        out[f"{kind}_lever_m"] = tuple(float(keys.get(key, 0.0)) for key in LEVER_KEYS)
+    return out
+
+
 KINDS = {k.name: k for k in (
     AidingKind("odo", ("t", "vx", "vy", "vz"), ("vel_std_mps",), False),
     AidingKind("gnss", ("t", "lat_deg", "lon_deg", "h_m", "vE", "vN", "vU"), ("vel_std_mps", "pos_std_m"), True),
     AidingKind("master", ("t", "qw", "qx", "qy", "qz", "vE", "vN", "vU", "lat_deg", "lon_deg", "h_m"),
                ("att_std_deg", "vel_std_mps"), True),
 )}
+_CONFIG_KEYS = {("odo", "vel_std_mps"): "odo_std_mps"}
+"""Where a log key's configuration key is not ``<kind>_<key>``."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -50,6 +64,10 @@ class AidingLog:
 
     def std(self, key: str) -> float | None:
         return self.header.number(key) if key in self.header.values else None
+
+    def stated(self) -> dict[str, object]:
+        """The ``[aiding]`` configuration this log states of its sensor (:func:`stated_aiding`)."""
+        return stated_aiding(self.kind.name, self.header.values)
 
     def blocks(self, chunk_rows: int = CHUNK_ROWS) -> Iterator[np.ndarray]:
         # epochs out of order or repeated are the consumer's to count (service/aiding.py), not fatal

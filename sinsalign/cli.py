@@ -326,10 +326,9 @@ def cmd_bench(args: argparse.Namespace) -> int:
             print(f"--aid: {args.log or args.scenario} has no simulated aiding sensor (seed003-*, seed004, seed002 "
                   "have)", file=sys.stderr)
             return 2
-        kind, epochs, keys = aid
-        aiding = AidingPlayback(kind, epochs[epochs[:, 0] <= duration], args.aid_late)
-        table = ", ".join(f"{k} = {json.dumps(v)}" for k, v in keys.items())
-        what += f", with its {kind} epochs {args.aid_late:g} s late (serve --aid {kind}, [aiding] {table})"
+        aiding = AidingPlayback(aid.kind, aid.epochs[aid.epochs[:, 0] <= duration], args.aid_late)
+        table = ", ".join(f"{k} = {json.dumps(v)}" for k, v in aid.daemon_config().items())
+        what += f", with its {aid.kind} epochs {args.aid_late:g} s late (serve --aid {aid.kind}, [aiding] {table})"
     pty = None
     if args.port:
         fd = os.open(args.port, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)

@@ -180,3 +180,25 @@ def test_a_master_track_interpolates_its_attitude_as_a_rotation_whatever_the_qua
     assert np.allclose(np.linalg.norm(values[:, :4], axis=1), 1.0)
     truth = dcm_from_quat(quat_from_rotvec(np.column_stack((np.zeros((49, 2)), 0.2 * at))))
     assert np.abs(misalignment(dcm_from_quat(values[:, :4]), truth)).max() < 1e-6
+
+
+@pytest.mark.parametrize("name", ["seed003-20", "seed003-20-ideal", "seed004", "seed004-ideal", "seed002",
+                                  "seed002-ideal"])
+def test_sim_replay_eval_and_the_live_bench_configure_an_aiding_sensor_alike(tmp_path: Path, name: str) -> None:
+    """What a simulated aiding log states of its sensor is read back by the replay as the evaluation and the live
+    bench configure it, and the bench's [aiding] table is a valid configuration. An ideal sensor states no noise:
+    the demo used to configure its 0 and stop with "aiding.gnss_vel_std_mps: must be > 0"."""
+    from sinsalign.service.config import config_from_mapping
+    from sinsalign.tools.sim.aiding import scenario_aiding
+    from sinsalign.tools.sim.files import write_simulation
+    from sinsalign.tools.sim.scenarios import seed_run
+    scenario = seed_run(name, 1, 2.0)
+    aid = scenario_aiding(scenario, 1)
+    files = write_simulation(scenario, 1, tmp_path)
+    log = open_aiding_log(aid.kind, getattr(files, f"{aid.kind}_csv"))
+    assert log.stated() == aid.stated()
+    assert bool(aid.stated()) == (not name.endswith("-ideal") or aid.kind == "gnss")   # an antenna's lever arm stays
+    config = config_from_mapping({"aiding": aid.daemon_config()})
+    assert config.aiding.inputs == (aid.kind,)
+    for key, value in aid.stated().items():
+        assert getattr(config.aiding, key) == value

@@ -58,13 +58,13 @@ def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: b
     out_dir.mkdir(parents=True, exist_ok=True)
     port = free_loopback_port()
     aid = scenario_aiding(scenario, seed)
-    aiding = None if aid is None else AidingPlayback(aid[0], aid[1], AIDING_LATE_S)
+    aiding = None if aid is None else AidingPlayback(aid.kind, aid.epochs, AIDING_LATE_S)
     config = config_from_mapping({
         **daemon_sections(scenario),
         "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"], "unit": "demo"},
         "daemon": {"record_path": str(out_dir / "recorded.csv")},
         # the samples wait for their aiding: allow for the latency at any playing speed
-        **({} if aid is None else {"aiding": {**aid[2], "max_wait_s": 10.0}})})
+        **({} if aid is None else {"aiding": {**aid.daemon_config(), "max_wait_s": 10.0}})})
     pty = PtyPair()
     daemon = Daemon(config, open_session(config.zenoh), SerialPort(pty.port_name, config.serial.baud))
     watcher_config = replace(config.zenoh, listen=(), connect=(f"tcp/127.0.0.1:{port}",))
@@ -110,7 +110,7 @@ def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: b
     phi = misalignment(dcm_from_quat(np.array([m["q"] for m in received])), truth_C[index]) / DEG
     return DemoResult(t, [m["phase"] for m in received], phi, np.array([m["heading_sigma_deg"] for m in received]),
                       np.array([m["converged"] for m in received]), run_limit_deg(scenario, truth_t),
-                      status["counters"], None if aid is None else aid[0])
+                      status["counters"], None if aid is None else aid.kind)
 
 
 def summary(result: DemoResult, scenario_name: str) -> str:

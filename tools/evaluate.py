@@ -85,14 +85,11 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
                                      initial_q_b_n=initial)
     else:
-        kind, epochs, _ = aid
-        epochs = with_faults(kind, epochs, seed, **(aid_faults or {}))
-        if kind == "gnss" and gnss_lever_stated:
-            # the antenna's lever arm as its log would state it
-            config = replace(config, aiding=replace(config.aiding, gnss_lever_m=scenario.gnss.lever_b))
-        if kind == "odo" and scenario.odometer.noise_mps:
-            # the odometer's noise as its log would state it
-            config = replace(config, aiding=replace(config.aiding, odo_std_mps=scenario.odometer.noise_mps))
+        kind = aid.kind
+        epochs = with_faults(kind, aid.epochs, seed, **(aid_faults or {}))
+        # the sensor as its log states it (its noise; a GNSS antenna's lever arm, unless that is left unstated)
+        stated = {k: v for k, v in aid.stated().items() if gnss_lever_stated or k != "gnss_lever_m"}
+        config = replace(config, aiding=replace(config.aiding, **stated))
         # the aided pipeline, its readings through the same aiding track as a log's
         pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), [kind], live)
         track = AidingTrack.configured(kind, config.aiding)

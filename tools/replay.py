@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
-from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS, open_aiding_log
+from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.service.aided_pipeline import build_pipeline
@@ -44,16 +44,7 @@ def open_aids(aids: dict[str, str], config: Config) -> tuple[Config, dict[str, A
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
         feeds[kind] = AidingFeed(AidingTrack.configured(kind, config.aiding), log.blocks())
-        stated = {}
-        if kind == "odo":
-            stated = {"odo_std_mps": log.std("vel_std_mps")}
-        elif kind == "gnss":
-            stated = {"gnss_vel_std_mps": log.std("vel_std_mps"), "gnss_pos_std_m": log.std("pos_std_m")}
-        elif kind == "master":
-            stated = {"master_att_std_deg": log.std("att_std_deg"), "master_vel_std_mps": log.std("vel_std_mps")}
-        if kind in ("gnss", "master") and any(key in log.header.values for key in LEVER_KEYS):
-            stated[f"{kind}_lever_m"] = tuple(float(v) for v in log.lever_arm_m)
-        config = replace(config, aiding=replace(config.aiding, **{k: v for k, v in stated.items() if v}))
+        config = replace(config, aiding=replace(config.aiding, **log.stated()))
     return config, feeds
 
 

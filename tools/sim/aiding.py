@@ -9,11 +9,12 @@ white noise; each written as its pinned log.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS
+from sinsalign.protocol.aiding_log import KINDS, LEVER_KEYS, stated_aiding
 from sinsalign.protocol.imu_log import write_header, write_rows
 from sinsalign.service.align.conventions import DEG, cross, dcm_from_quat, quat_from_dcm, quat_from_rotvec, wrap_pi
 from sinsalign.service.align.earth import radii, transport_rate_n
@@ -44,13 +45,22 @@ def body_velocity(motion: VehicleMotion, t: np.ndarray, lever_b: np.ndarray | No
     return measured
 
 
-def write_body_velocity_log(path: str | Path, t: np.ndarray, v_b: np.ndarray, vel_std_mps: float | None = None) -> Path:
-    """The pinned body-velocity log: ``t,vx,vy,vz`` with an optional ``# vel_std_mps=`` key."""
+def write_aiding_log(path: str | Path, kind: str, epochs: np.ndarray, keys: Mapping[str, float]) -> Path:
+    """The pinned aiding log of ``kind``: the comment ``keys``, the kind's header row, the epochs (N, columns)."""
     path = Path(path)
     with open(path, "w", encoding="utf-8") as f:
-        write_header(f, {} if vel_std_mps is None else {"vel_std_mps": vel_std_mps}, KINDS["odo"].columns)
-        write_rows(f, np.column_stack((t, v_b)))
+        write_header(f, keys, KINDS[kind].columns)
+        write_rows(f, epochs)
     return path
+
+
+def _given(**keys: float | None) -> dict[str, float]:
+    return {k: v for k, v in keys.items() if v is not None}
+
+
+def write_body_velocity_log(path: str | Path, t: np.ndarray, v_b: np.ndarray, vel_std_mps: float | None = None) -> Path:
+    """The pinned body-velocity log: ``t,vx,vy,vz`` with an optional ``# vel_std_mps=`` key."""
+    return write_aiding_log(path, "odo", np.column_stack((t, v_b)), _given(vel_std_mps=vel_std_mps))
 
 
 def epoch_times(duration_s: float, rate_hz: float) -> np.ndarray:
@@ -154,12 +164,7 @@ def write_gnss_log(path: str | Path, epochs: np.ndarray, lever_b: np.ndarray | N
                    vel_std_mps: float | None = None, pos_std_m: float | None = None) -> Path:
     """The pinned GNSS log: ``t,lat_deg,lon_deg,h_m,vE,vN,vU`` with lever-arm and noise keys."""
     keys = {} if lever_b is None else dict(zip(LEVER_KEYS, (float(v) for v in lever_b), strict=True))
-    keys.update({k: v for k, v in (("vel_std_mps", vel_std_mps), ("pos_std_m", pos_std_m)) if v is not None})
-    path = Path(path)
-    with open(path, "w", encoding="utf-8") as f:
-        write_header(f, keys, KINDS["gnss"].columns)
-        write_rows(f, epochs)
-    return path
+    return write_aiding_log(path, "gnss", epochs, keys | _given(vel_std_mps=vel_std_mps, pos_std_m=pos_std_m))
 
 
 def master_epochs(scenario: Scenario, seed: int) -> np.ndarray:
@@ -179,31 +184,45 @@ def master_epochs(scenario: Scenario, seed: int) -> np.ndarray:
 def write_master_log(path: str | Path, epochs: np.ndarray, att_std_deg: float | None = None,
                      vel_std_mps: float | None = None) -> Path:
     """The pinned master-INS log: ``t,qw,qx,qy,qz,vE,vN,vU,lat_deg,lon_deg,h_m`` with its noise keys."""
-    keys = {k: v for k, v in (("att_std_deg", att_std_deg), ("vel_std_mps", vel_std_mps)) if v is not None}
-    path = Path(path)
-    with open(path, "w", encoding="utf-8") as f:
-        write_header(f, keys, KINDS["master"].columns)
-        write_rows(f, epochs)
-    return path
+    return write_aiding_log(path, "master", epochs, _given(att_std_deg=att_std_deg, vel_std_mps=vel_std_mps))
 
 
-def scenario_aiding(scenario: Scenario, seed: int) -> tuple[str, np.ndarray, dict[str, object]] | None:
-    """The scenario's aiding sensor, if it has one: its kind (odo, gnss, master), its epochs (N, 1 + values: t in s,
-    then the kind's pinned log columns) for ``seed``, and the daemon's [aiding] keys that select the mode and state
-    the sensor (lever arm, noise) as its log would."""
+@dataclass(frozen=True, slots=True)
+class ScenarioAid:
+    """A scenario's aiding sensor for one seed: its kind (odo, gnss, master), its epochs (N, 1 + values: t in s, then
+    the kind's pinned log columns) and the comment keys its log states (noise figures above 0, a GNSS antenna's
+    lever arm): what ``sim`` writes, the replay reads, and the evaluation and the live bench configure alike."""
+
+    kind: str
+    epochs: np.ndarray
+    log_keys: dict[str, float]
+    odo_lever_b: tuple[float, float, float] | None = None
+
+    def stated(self) -> dict[str, object]:
+        """The ``[aiding]`` configuration its log states (:func:`stated_aiding`), as a replay of it takes."""
+        return stated_aiding(self.kind, self.log_keys)
+
+    def daemon_config(self) -> dict[str, object]:
+        """The daemon's ``[aiding]`` keys: this kind as the input, what its log would state, and an odometer's lever
+        arm (its log has no key for it: the integrator configures it)."""
+        lever = {} if self.odo_lever_b is None else {"odo_lever_m": list(self.odo_lever_b)}
+        return {"inputs": [self.kind], **{k: list(v) if isinstance(v, tuple) else v for k, v in self.stated().items()},
+                **lever}
+
+
+def scenario_aiding(scenario: Scenario, seed: int) -> ScenarioAid | None:
+    """The scenario's aiding sensor for ``seed``, if it has one."""
     if scenario.gnss is not None:
         g = scenario.gnss
-        return "gnss", gnss_epochs(scenario, seed), {"inputs": ["gnss"], "gnss_lever_m": list(g.lever_b),
-                                                     "gnss_vel_std_mps": g.vel_noise_mps,
-                                                     "gnss_pos_std_m": g.pos_noise_m}
+        return ScenarioAid("gnss", gnss_epochs(scenario, seed), dict(zip(LEVER_KEYS, g.lever_b, strict=True))
+                           | _given(vel_std_mps=g.vel_noise_mps or None, pos_std_m=g.pos_noise_m or None))
     if scenario.master is not None:
         m = scenario.master
-        return "master", master_epochs(scenario, seed), {"inputs": ["master"], "master_att_std_deg": m.att_noise_deg,
-                                                         "master_vel_std_mps": m.vel_noise_mps}
+        return ScenarioAid("master", master_epochs(scenario, seed),
+                           _given(att_std_deg=m.att_noise_deg or None, vel_std_mps=m.vel_noise_mps or None))
     if scenario.odometer is not None:
         o = scenario.odometer
-        return "odo", odometer_epochs(scenario, seed), {"inputs": ["odo"], "odo_std_mps": o.noise_mps,
-                                                        "odo_lever_m": list(o.lever_b)}
+        return ScenarioAid("odo", odometer_epochs(scenario, seed), _given(vel_std_mps=o.noise_mps or None), o.lever_b)
     return None
 
 

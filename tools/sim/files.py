@@ -13,14 +13,7 @@ import numpy as np
 from sinsalign.protocol.imu_log import IMU_COLUMNS, TRUTH_COLUMNS, LogHeader, write_header, write_rows
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
 
-from .aiding import (
-    gnss_epochs,
-    master_epochs,
-    odometer_epochs,
-    write_body_velocity_log,
-    write_gnss_log,
-    write_master_log,
-)
+from .aiding import scenario_aiding, write_aiding_log
 from .imu import simulate
 from .scenarios import Scenario
 
@@ -65,21 +58,12 @@ def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: s
     scenario = scenario.for_seed(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    aid = scenario_aiding(scenario, seed)
     files = SimulatedFiles(out / f"{stem}.csv", out / f"{stem}_truth.csv",
-                           None if scenario.odometer is None else out / f"{stem}_odo.csv",
-                           None if scenario.gnss is None else out / f"{stem}_gnss.csv",
-                           None if scenario.master is None else out / f"{stem}_master.csv")
-    if files.odo_csv is not None:
-        epochs = odometer_epochs(scenario, seed)
-        write_body_velocity_log(files.odo_csv, epochs[:, 0], epochs[:, 1:], scenario.odometer.noise_mps or None)
-    if files.gnss_csv is not None:
-        g = scenario.gnss
-        write_gnss_log(files.gnss_csv, gnss_epochs(scenario, seed), np.array(g.lever_b), g.vel_noise_mps or None,
-                       g.pos_noise_m or None)
-    if files.master_csv is not None:
-        m = scenario.master
-        write_master_log(files.master_csv, master_epochs(scenario, seed), m.att_noise_deg or None,
-                         m.vel_noise_mps or None)
+                           *(out / f"{stem}_{kind}.csv" if aid is not None and aid.kind == kind else None
+                             for kind in ("odo", "gnss", "master")))
+    if aid is not None:
+        write_aiding_log(getattr(files, f"{aid.kind}_csv"), aid.kind, aid.epochs, aid.log_keys)
     with open(files.imu_csv, "w", encoding="utf-8") as imu, open(files.truth_csv, "w", encoding="utf-8") as truth:
         write_header(imu, log_keys(scenario, seed), IMU_COLUMNS)
         write_header(truth, {"scenario": scenario.name, "seed": seed}, TRUTH_COLUMNS)
