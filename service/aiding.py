@@ -246,11 +246,11 @@ class AidingFeed:
         return rows
 
 
-ASSUMED_INTERVAL_S = 1.0
-"""A stream's interval between epochs until two epochs show it: 1 s, the slowest common aid (a 1-Hz GNSS receiver)."""
 MAX_INTERVAL_S = 2.0
-"""The longest stream interval the wait covers by itself (s); a slower stream needs ``max_wait_s`` raised. The bound
-keeps a long silence from holding the output: a lone fix after ten minutes would set a ten-minute interval."""
+"""The longest stream interval the wait covers by itself (s), and the one it assumes until two epochs show the
+stream's own (a 0.5-Hz receiver's first interval is waited for; a fast stream shows its interval at once); a slower
+stream needs ``max_wait_s`` raised. The bound keeps a long silence from holding the output: a lone fix after ten
+minutes would set a ten-minute interval."""
 
 
 class AidingWait:
@@ -300,10 +300,9 @@ class AidingWait:
     @property
     def wait_s(self) -> float:
         """How long (s of data) a sample waits for the epoch after it: ``max_wait_s`` for the stream's latency, plus
-        its usual interval once it has started (:data:`ASSUMED_INTERVAL_S` until two epochs show it; at most
-        :data:`MAX_INTERVAL_S`). Before the first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can
-        be interpolated anyway."""
+        its usual interval once it has started (at most :data:`MAX_INTERVAL_S`, and that until two epochs show it).
+        Before the first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can be interpolated anyway."""
         if self.track.latest_time is None:
             return self.max_wait_s
         interval = self.track.usual_interval_s
-        return self.max_wait_s + min(ASSUMED_INTERVAL_S if interval is None else interval, MAX_INTERVAL_S)
+        return self.max_wait_s + min(MAX_INTERVAL_S if interval is None else interval, MAX_INTERVAL_S)

@@ -421,12 +421,20 @@ def test_after_the_aid_began_a_dead_receiver_is_a_fault_across_a_restart(pty_pai
 
 def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
     """Before the first epoch max_wait_s (nothing earlier can be interpolated); after it the stream's interval is
-    added, 1 s until a second epoch shows it, at most MAX_INTERVAL_S; a sample after a 1-Hz fix waits for the next
-    one, not max_wait_s."""
+    added, MAX_INTERVAL_S until a second epoch shows it and at most that; a sample after a 1-Hz fix waits for the next
+    one, not max_wait_s; a 0.5-Hz receiver's first interval is waited for too (with 1 s assumed, its samples up to
+    0.9 s went unaided once at start)."""
+    slow = AidingWait(AidingTrack(1, max_gap_s=3.0), max_wait_s=0.5)
+    slow.track.push(np.array([[0.0, 1.0]]))
+    slow.push(np.column_stack((np.arange(1, 241) / 100.0, np.zeros((240, 6)))))   # to 2.4 s, the fix at 2 s late
+    assert len(slow.release()[0]) == 0
+    slow.track.push(np.array([[2.0, 2.0]]))
+    out, aid = slow.release()
+    assert out[-1, 0] == 2.0 and np.allclose(aid[:, 1], 1.0 + out[:, 0] / 2.0)
     wait = AidingWait(AidingTrack(1), max_wait_s=0.5)
     assert wait.wait_s == 0.5
     wait.track.push(np.array([[0.0, 1.0]]))
-    assert wait.wait_s == 1.5
+    assert wait.wait_s == 0.5 + MAX_INTERVAL_S
     wait.track.push(np.array([[1.0, 2.0]]))
     assert wait.wait_s == 1.5
     wait.push(np.column_stack((np.arange(101, 241) / 100.0, np.zeros((140, 6)))))   # 1.01-2.40 s
