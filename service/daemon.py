@@ -97,7 +97,8 @@ class Daemon:
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.counters = SampleCounters()
         self.last_error: str | None = None
-        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None}
+        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None,
+                                                 "aiding": None}
         self._disturbances_before = 0
         self._aiding_before: dict[str, int] = {}   # the aiding counters of the pipelines before restarts
         self.last_record: ResultRecord | None = None
@@ -270,7 +271,7 @@ class Daemon:
                 self._record_raw(t, segment.rows[:, 1:4], segment.rows[:, 4:7])
                 records += self._feed(segment.rows)
             for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance),
-                                 ("alignment", self.pipeline.last_notice)):
+                                 ("alignment", self.pipeline.last_notice), ("aiding", self._aid_stopped_text())):
                 if text and text != self._reported[source]:   # report each new event once
                     self._reported[source] = text
                     self._error(text)
@@ -356,7 +357,7 @@ class Daemon:
                       else "starting" if awaiting else "ok")
         if advance:
             self._counters_at_status = counters
-        last_error = self._aid_wait_text() if awaiting else None
+        last_error = self._aid_wait_text() if awaiting else self._aid_stopped_text()
         last_error = last_error or self.last_error or (self.serial.last_error if self.serial is not None else None)
         phase = self.last_record.phase if self.last_record is not None else "coarse"
         return messages.status_message(self.keys.unit, time.monotonic() - self._started, health, phase, self.t_last,
@@ -373,6 +374,17 @@ class Daemon:
                     f"starts with the first (check the receiver, --aid {kind}, its topic or serial frames)")
         return (f"{kind} epochs arrive ({track.counters.epochs}, the newest at t = {track.latest_time:.2f} s) but "
                 f"none covers the IMU's time yet (t = {self.t_last:.2f} s): a clock offset or aiding.{kind}_latency_s?")
+
+    def _aid_stopped_text(self) -> str | None:
+        """What an aided mode misses while its stream, once begun, has been silent for longer than the wait."""
+        if self._wait is None or self.t_last is None or self.pipeline.awaiting_aid:
+            return None
+        kind = self.pipeline.aid_kind
+        latest = self.tracks[kind].latest_time
+        if latest is None or self.t_last - latest <= self._wait.wait_s:
+            return None
+        return (f"{kind} epochs stopped after t = {latest:.2f} s: the alignment goes on without them (check the "
+                f"receiver, its topic or serial frames)")
 
     def _on_query(self, query: zenoh.Query) -> None:
         state = {"v": messages.VERSION, "unit": self.keys.unit, "status": self.status(),

@@ -397,7 +397,8 @@ def test_fixes_off_the_imus_clock_are_named_and_degrade_health_after_the_grace(p
 def test_after_the_aid_began_a_dead_receiver_is_a_fault_across_a_restart(pty_pair, running):
     """GIVEN fixes for the first 3 s, then none (the receiver died), and an IMU outage that restarts the alignment,
     THEN the observations after the fixes stop are unaided (a fault) before and after the restart, none of them
-    awaits the aid, and health degrades (a fault counter rose) but never goes back to "starting"."""
+    awaits the aid, health degrades (a fault counter rose) but never goes back to "starting", and the status names
+    the silence (it kept the last event's text, the restart's)."""
     scenario = get_scenario("seed004")
     run = running(**daemon_sections(scenario), aiding={"inputs": ["gnss"]})
     chunk = simulated_run(scenario, 9.0)
@@ -417,6 +418,9 @@ def test_after_the_aid_began_a_dead_receiver_is_a_fault_across_a_restart(pty_pai
     assert counters["restarts"] == 1 and counters["gnss_observations_awaiting_aid"] == 0
     assert counters["gnss_unaided_observations"] >= 10 + 30   # 3-4 s before the outage, 5-8.5 s after it
     assert "starting" not in {s["health"] for s in statuses} and "degraded" in {s["health"] for s in statuses}
+    # the status says what is missing while it is, across the restart (whose own report came later)
+    stopped = "gnss epochs stopped after t = 3.00 s"
+    assert statuses[-1]["last_error"].startswith(stopped) and run.daemon.last_error != statuses[-1]["last_error"]
 
 
 def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
