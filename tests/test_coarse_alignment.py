@@ -169,3 +169,23 @@ def test_the_seed_set_table_reports_each_set_and_the_pool(swing_runs):
     assert [r.split(" | ")[0] for r in rows[1:]] == ["| 0–9", "| 10–19", "| all 20"]
     pooled, first = window_stats(swing_runs, (101, 200)), window_stats(swing_runs[:10], (101, 200))
     assert f"{pooled.heading_seed_std:.4f}" in rows[-1] and f"{first.heading_inwindow_std:.5f}" in rows[1]
+
+
+@pytest.mark.parametrize("lat_deg", [89.99, -89.999])
+def test_near_a_pole_heading_is_unobservable_and_sigma_says_so(lat_deg: float) -> None:
+    """Gyrocompassing needs Ω cos L: within 0.01° of a pole the Earth's rotation shows no north. The run goes on
+    without a warning or a non-finite number, levels as anywhere, reports heading σ at the cap of an unknown angle
+    (103.9°) and never converged; 1° from the pole σ still covers the error."""
+    from sinsalign.service.align.sensor_model import SIGMA_UNKNOWN_DEG
+    from sinsalign.service.config import Config
+    scenario = get_scenario("static")
+    for lat, capped in ((lat_deg, True), (np.copysign(89.0, lat_deg), False)):
+        site = replace(scenario.site, lat=lat * DEG)
+        with np.errstate(all="raise"):
+            run = run_once(replace(scenario, site=site, duration_s=60.0), 1, Config())
+        assert np.isfinite(run.phi_deg).all() and not run.converged.any()
+        assert np.abs(run.phi_deg[-1, :2] - run.limit_deg[:2]).max() < 0.005
+        if capped:
+            assert run.heading_sigma_deg[-1] == pytest.approx(SIGMA_UNKNOWN_DEG)
+        else:
+            assert abs(run.phi_deg[-1, 2]) < 2.0 * run.heading_sigma_deg[-1] < SIGMA_UNKNOWN_DEG
