@@ -57,14 +57,6 @@ class AidingLog:
     path: str
     header: LogHeader
 
-    @property
-    def lever_arm_m(self) -> np.ndarray:
-        """Lever arm (3,) in m, body axes (zero unless the log states it)."""
-        return np.array([self.header.number(k) if k in self.header.values else 0.0 for k in LEVER_KEYS])
-
-    def std(self, key: str) -> float | None:
-        return self.header.number(key) if key in self.header.values else None
-
     def stated(self) -> dict[str, object]:
         """The ``[aiding]`` configuration this log states of its sensor (:func:`stated_aiding`)."""
         return stated_aiding(self.kind.name, self.header.values)

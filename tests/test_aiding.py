@@ -36,8 +36,10 @@ def test_lever_arm_and_std_keys(tmp_path):
     rows = np.array([[0.1, 30.0, 114.0, 20.0, 0.0, 50.0, 0.0]])
     keys = {"lever_x_m": 1.0, "lever_y_m": -1.0, "lever_z_m": 0.5, "vel_std_mps": 0.1, "pos_std_m": 2.0}
     log = open_aiding_log("gnss", write_log(tmp_path / "g.csv", "gnss", rows, keys))
-    assert log.lever_arm_m.tolist() == [1.0, -1.0, 0.5] and log.std("pos_std_m") == 2.0
-    assert open_aiding_log("odo", write_log(tmp_path / "o.csv", "odo", rows[:, :4])).std("vel_std_mps") is None
+    assert log.stated() == {"gnss_lever_m": (1.0, -1.0, 0.5), "gnss_vel_std_mps": 0.1, "gnss_pos_std_m": 2.0}
+    assert open_aiding_log("odo", write_log(tmp_path / "o.csv", "odo", rows[:, :4])).stated() == {}
+    lever_y = open_aiding_log("gnss", write_log(tmp_path / "y.csv", "gnss", rows, {"lever_y_m": 2.0, "vel_std_mps": 0}))
+    assert lever_y.stated() == {"gnss_lever_m": (0.0, 2.0, 0.0)}   # a 0 std states an ideal receiver: none taken
     with pytest.raises(LogFormatError, match="vel_std_mps must be a finite number ≥ 0"):
         open_aiding_log("odo", write_log(tmp_path / "bad.csv", "odo", rows[:, :4], {"vel_std_mps": -1}))
     with pytest.raises(ValueError, match="unknown aiding kind"):
