@@ -146,11 +146,17 @@ def rate_table(seeds: Sequence[int], rates_hz: Sequence[float] = RATES_HZ, progr
         early, mid = _stats(runs, CHECK_TIMES_S[0]), _stats(runs, MEAN_AT_S)
         return (f"| {label} | {_cell(early, 'mae', '.4f')} | {_cell(mid, 'mae', '.4f')} | "
                 f"{_cell(mid, 'mean', '+.4f')} | {100 * honest.inside_2sigma:.1f} % | "
-                f"{honest.converged_beyond_3sigma} | {counts.get('gaps', 0)} | "
-                f"{counts.get('gnss_observations_awaiting_aid', 0)} / {counts.get('gnss_unaided_observations', 0)} | "
+                f"{honest.converged_beyond_3sigma} | {stream_cells(counts, 'gnss')} | "
                 f"{counts.get('gnss_vel_accepted', 0)} |")
 
     return rate_rows(SCENARIO, seeds, rates_hz, row, lines, progress, duration_s)
+
+
+def stream_cells(counts: dict[str, int], kind: str) -> str:
+    """The rate tables' cells of what an aiding stream's epochs came to (counters summed over seeds): its gaps, then
+    the coarse observations awaiting its first epoch / unaided after it."""
+    return (f"{counts.get('gaps', 0)} | {counts.get(f'{kind}_observations_awaiting_aid', 0)} / "
+            f"{counts.get(f'{kind}_unaided_observations', 0)}")
 
 
 def rate_rows(scenario: str, seeds: Sequence[int], rates_hz: Sequence[float],

@@ -30,7 +30,7 @@ from .evaluate import (
     run_parallel,
 )
 from .evaluate_aided import fine_honesty
-from .evaluate_gnss import plot_heading_runs, rate_rows, summed_counters
+from .evaluate_gnss import plot_heading_runs, rate_rows, stream_cells, summed_counters
 from .sim.aiding import master_epochs
 from .sim.imu import simulate
 from .sim.scenarios import SEED002_MOUNT_DEG, Scenario, get_scenario, seed002_flight
@@ -118,8 +118,7 @@ def rate_table(seeds: Sequence[int], progress: bool = True, rates_hz: Sequence[f
         c = summed_counters(runs)
         return (f"| {label} | {_axes(rms_at(runs, AT_S[0]))} | {_axes(rms_at(runs, AT_S[1]))} | "
                 f"{_axes(mounting)} | {100 * fine_honesty(runs, HONEST_FROM_S).inside_2sigma:.1f} % | "
-                f"{converged_beyond_3sigma_any_axis(runs)} | {c.get('gaps', 0)} | "
-                f"{c.get('master_observations_awaiting_aid', 0)} / {c.get('master_unaided_observations', 0)} | "
+                f"{converged_beyond_3sigma_any_axis(runs)} | {stream_cells(c, 'master')} | "
                 f"{c.get('master_vel_accepted', 0)} / {c.get('master_att_accepted', 0)} |")
 
     return rate_rows(SCENARIO, seeds, rates_hz, row, lines, progress, duration_s)
