@@ -23,6 +23,7 @@ Typical session:
   sinsalign replay run1/imu.csv --out run1/results.jsonl   # align it as fast as the CPU goes
   sinsalign eval seed000-swing --seeds 20 --no-fine         # Monte Carlo table and plot (OPREQ)
   sinsalign eval seed001-swing --fine                       # seed 001's compass comparison
+  sinsalign eval seed000-swing --no-fine --budget          # which IMU error the heading's figures come from
   sinsalign demo                                            # the live bench in one command
 
 Live:
@@ -159,6 +160,7 @@ def _aided_table(name: str, seeds: range, out: Path) -> None:
 def cmd_eval(args: argparse.Namespace) -> int:
     from sinsalign.service.config import ConfigError, load_config
     from sinsalign.tools.evaluate import (
+        budget_table,
         fine_table,
         monte_carlo,
         plot_fine,
@@ -172,10 +174,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
     overrides = _overrides(args)
     config = load_config(args.config, overrides)   # a wrong file or option fails here, before any run
     aided = args.scenario in AIDED_TABLES
-    if aided and (args.config or overrides or args.solvers or args.fine or args.seed_sets > 1):
+    if aided and (args.config or overrides or args.solvers or args.fine or args.seed_sets > 1 or args.budget):
         raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config, the alignment "
-                          "options, --solvers, --fine and --seed-sets apply to a single scenario (sinsalign sim "
-                          "--list)")
+                          "options, --solvers, --fine, --seed-sets and --budget apply to a single scenario "
+                          "(sinsalign sim --list)")
     out.mkdir(parents=True, exist_ok=True)
     if aided:
         _aided_table(args.scenario, seeds, out)
@@ -185,6 +187,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
     if args.seed_sets > 1:
         text += "\n\n" + seed_set_table(args.scenario, runs, args.seeds)
     others = None
+    if args.budget:
+        text += "\n\n" + budget_table(args.scenario, runs, config.as_dict())[0]
     if args.fine:
         table, fine_runs = fine_table(args.scenario, seeds)
         text += "\n\n" + table
@@ -463,6 +467,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run K disjoint sets of --seeds seeds and add a table of the last window per set (how much a "
                    "20-seed figure moves with the seeds; issue 3's figures: --seeds 20 --seed-sets 5)")
     p.add_argument("--solvers", action="store_true", help="also compare OPREQ, q-method and REQUEST gains")
+    p.add_argument("--budget", action="store_true", help="also run the same seeds with each IMU error alone (biases "
+                   "and other systematic errors, accelerometer noise, gyro noise; the datasheet unchanged) and print "
+                   "the last window's error budget: which error the heading's figures come from")
     p.add_argument("--fine", action="store_true", help="also run seed 001's comparison: OPREQ only, compass alone "
                    "from 1.5°, OPREQ → compass, each with and without stored data; table and plot")
     p.add_argument("--out-dir", default="out/eval")

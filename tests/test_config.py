@@ -271,7 +271,7 @@ def test_every_aided_eval_table_resolves_to_its_table_and_plot() -> None:
         assert callable(_tool(table)) and callable(_tool(plot))
 
 
-@pytest.mark.parametrize("options", [["--solvers"], ["--seed-sets", "2"], ["--fine"]])
+@pytest.mark.parametrize("options", [["--solvers"], ["--seed-sets", "2"], ["--fine"], ["--budget"]])
 def test_eval_refuses_comparisons_for_an_aided_table(capsys: pytest.CaptureFixture[str], tmp_path: Path,
                                                      options: list[str]) -> None:
     assert main(["eval", "seed002-rates", "--out-dir", str(tmp_path), *options]) == 2

@@ -24,7 +24,7 @@ from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 
 from .sim.aiding import scenario_aiding, with_faults
-from .sim.imu import simulate
+from .sim.imu import ERROR_SOURCES, simulate
 from .sim.scenarios import Scenario, get_scenario
 
 COARSE_ONLY = {"fine": {"enabled": False}}
@@ -111,26 +111,31 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
                      run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error)
 
 
-def _run_task(args: tuple[str, int, dict, float | None, float | None, dict]) -> RunResult:
-    """One seed of :func:`monte_carlo`: scenario name, seed, overrides, duration (s), aiding rate (Hz), run_once
-    keywords."""
-    name, seed, overrides, duration_s, aid_rate_hz, options = args
+def _run_task(args: tuple[str, int, dict, float | None, float | None, str | None, dict]) -> RunResult:
+    """One seed of :func:`monte_carlo`: scenario name, seed, overrides, duration (s), aiding rate (Hz), error
+    source, run_once keywords."""
+    name, seed, overrides, duration_s, aid_rate_hz, error_source, options = args
     scenario = get_scenario(name)
     if duration_s is not None:
         scenario = replace(scenario, duration_s=duration_s)
     if aid_rate_hz is not None:
         scenario = scenario.with_aid_rate(aid_rate_hz)
+    if error_source is not None:
+        scenario = replace(scenario, errors=scenario.errors.only(error_source))
     return run_once(scenario, seed, config_from_mapping(overrides), **options)
 
 
 def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
                 progress: bool = True, label: str = "", initial_error_deg: Sequence[float] | None = None,
                 aid_faults: dict | None = None, duration_s: float | None = None,
-                gnss_lever_stated: bool = True, aid_rate_hz: float | None = None) -> list[RunResult]:
+                gnss_lever_stated: bool = True, aid_rate_hz: float | None = None,
+                error_source: str | None = None) -> list[RunResult]:
     """Run every seed (in parallel processes); results in seed order. See :func:`run_once`;
-    ``duration_s`` cuts the scenario short, ``aid_rate_hz`` runs its aiding sensor at another rate."""
+    ``duration_s`` cuts the scenario short, ``aid_rate_hz`` runs its aiding sensor at another rate,
+    ``error_source`` (a key of ERROR_SOURCES) keeps that one IMU error and zeroes the others (the datasheet the
+    log states stays the same, so the estimator weighs the data as before)."""
     options = {"initial_error_deg": initial_error_deg, "aid_faults": aid_faults, "gnss_lever_stated": gnss_lever_stated}
-    tasks = [(scenario_name, s, overrides or {}, duration_s, aid_rate_hz, options) for s in seeds]
+    tasks = [(scenario_name, s, overrides or {}, duration_s, aid_rate_hz, error_source, options) for s in seeds]
     return run_parallel(_run_task, tasks, f"{scenario_name} {label}".strip(), progress, workers)
 
 
@@ -237,6 +242,28 @@ def seed_set_table(name: str, runs: Sequence[RunResult], set_size: int) -> str:
         lines.append(f"| {label} | {w.heading_mean:+.4f} | {w.heading_seed_std:.4f} | {w.heading_inwindow_std:.5f} | "
                      f"{np.median([settling_time_s(r) for r in group]):.1f} |")
     return "\n".join(lines)
+
+
+def budget_table(name: str, runs: Sequence[RunResult], overrides: dict | None = None, progress: bool = True
+                 ) -> tuple[str, dict[str, list[RunResult]]]:
+    """Markdown error budget of one scenario's last window: ``runs`` (every error, the same seeds) and a re-run
+    of those seeds with each IMU error source alone, the estimator configured by ``overrides`` as in ``runs``.
+    The noise streams are the same in every row, so the rows split the figures of the first."""
+    window = get_scenario(name).eval_windows_s[-1]
+    seeds = [r.seed for r in runs]
+    lines = [f"**error budget of {name}** ({len(seeds)} seeds, window {window[0]:g}–{window[1]:g} s; heading "
+             "error − limit, °; level error − limit, °)", "",
+             "| IMU errors | limit φ_U | mean | seed STD | in-window STD | level E | level N |",
+             "|---|---|---|---|---|---|---|"]
+    by_source = {"all": runs}
+    for source, (label, _) in ERROR_SOURCES.items():
+        by_source[source] = monte_carlo(name, seeds, overrides, progress=progress, label=label, error_source=source)
+    for source, group in by_source.items():
+        w = window_stats(group, window)
+        label = "all (the scenario)" if source == "all" else f"{ERROR_SOURCES[source][0]} only"
+        lines.append(f"| {label} | {w.limit_heading_mean:+.4f} | {w.heading_mean:+.4f} | {w.heading_seed_std:.4f} | "
+                     f"{w.heading_inwindow_std:.5f} | {w.level_east_mean:+.5f} | {w.level_north_mean:+.5f} |")
+    return "\n".join(lines), by_source
 
 
 SOLVER_VARIANTS = (("OPREQ", {"solver": "opreq"}), ("q-method (OBA)", {"solver": "qmethod"}),

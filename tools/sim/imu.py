@@ -9,7 +9,7 @@ vehicle that drives).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from sinsalign.service.align.earth import Site
@@ -18,6 +18,13 @@ from .motion import AngularMotion
 from .vehicle import VehicleMotion
 
 GAUSS_NODES = 5
+ERROR_SOURCES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "systematic": ("biases, scale factors, axis misalignments",
+                   ("gyro_bias_rad_s", "acc_bias_ms2", "gyro_scale", "acc_scale", "gyro_misalignment",
+                    "acc_misalignment")),
+    "acc-noise": ("accelerometer noise", ("acc_noise_ms2", "acc_vrw_ms_rts")),
+    "gyro-noise": ("gyro noise", ("gyro_noise_rad_s", "gyro_arw_rad_rts"))}
+"""The IMU's error sources for an error budget: name → (label, the :class:`ImuErrors` fields it holds)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -42,6 +49,13 @@ class ImuErrors:
     acc_scale: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_misalignment: tuple[tuple[float, ...], ...] = ((0.0,) * 3,) * 3
     acc_misalignment: tuple[tuple[float, ...], ...] = ((0.0,) * 3,) * 3
+
+    def only(self, source: str) -> ImuErrors:
+        """These errors with one source of :data:`ERROR_SOURCES` kept and the others zero. The simulator draws
+        the same noise stream whatever is kept, so a seed's noise is the same with and without the biases."""
+        if source not in ERROR_SOURCES:
+            raise ValueError(f"error source {source!r} is not one of {', '.join(ERROR_SOURCES)}")
+        return replace(ImuErrors(), **{name: getattr(self, name) for name in ERROR_SOURCES[source][1]})
 
     def increment_noise_std(self, dt_s: float) -> tuple[float, float]:
         """(Δθ std in rad, Δv std in m/s) of one sample of length dt_s."""
