@@ -40,6 +40,8 @@ class AlignmentConfig:
     obs_interval_s: float = 0.1
     disturbance_velocity_mps: float = 1e-3
     converged_heading_sigma_deg: float = 0.1
+    swing_bias: bool = False
+    """Estimate the accelerometer bias seen through a swinging body and take its term out of α (fixed base)."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -22,6 +22,7 @@ from .align.noise_check import VERDICT_BLOCKS, NoiseMeter
 from .align.observations import FixedSiteSource
 from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, bias_limit_rad
 from .align.solvers import CentredWahba, RecursiveK, make_solver
+from .align.swing_bias import SwingBias
 from .config import Config, ConfigError
 
 INITIAL_TILT_SIGMA_DEG = 0.1
@@ -155,8 +156,10 @@ class AlignmentPipeline:
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment
         solver = make_solver(a.solver, a.request_rho, self.grade, self.site.gravity, a.disturbance_velocity_mps)
+        swing_bias = (SwingBias(self.site.lat, self.grade.acc_bias_ms2, self.grade.acc_vrw_ms_rts) if a.swing_bias
+                      else None)
         return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, solver, self.sample_period_s,
-                                       a.obs_interval_s, a.disturbance_velocity_mps)
+                                       a.obs_interval_s, a.disturbance_velocity_mps, swing_bias)
 
     def _make_fine(self) -> FineAlignment | None:
         if not self._with_fine:

@@ -57,7 +57,8 @@ SEED = _number_above(0, inclusive=True, kind=int)
 
 def _overrides(args: argparse.Namespace) -> dict:
     alignment = {k: v for k, v in (("solver", args.solver), ("request_rho", args.rho),
-                                   ("obs_interval_s", args.obs_interval)) if v is not None}
+                                   ("obs_interval_s", args.obs_interval),
+                                   ("swing_bias", True if args.swing_bias else None)) if v is not None}
     out = {"alignment": alignment} if alignment else {}
     fine = {k: v for k, v in (("enabled", False if args.no_fine else None), ("stored_pairs", args.stored_pairs))
             if v is not None}
@@ -77,12 +78,17 @@ def _add_alignment_options(p: argparse.ArgumentParser) -> None:
                    "squares on whitened α increments (fixed base; at the gyro's noise floor, see README)")
     g.add_argument("--rho", type=float, help="fixed fading gain of --solver request, e.g. 0.01")
     g.add_argument("--obs-interval", type=float, metavar="S", help="seconds between vector observations (0.1)")
+    g.add_argument("--swing-bias", action="store_true", default=None,
+                   help="estimate the accelerometer bias seen through a swinging body and take its term out of the "
+                   "coarse stage's vectors (fixed base; removes a slow heading transient on a swinging base, see "
+                   "README 'Swinging bias')")
     g.add_argument("--no-fine", action="store_true", help="OPREQ coarse alignment only (no compass hand-over)")
     g.add_argument("--stored-pairs", type=int, metavar="N",
                    help="backward+forward passes over the stored first 80 s (default 3; 0 = none)")
 
 
-FIXED_BASE_OPTIONS = {"solver": "--solver", "rho": "--rho", "stored_pairs": "--stored-pairs"}
+FIXED_BASE_OPTIONS = {"solver": "--solver", "rho": "--rho", "stored_pairs": "--stored-pairs",
+                      "swing_bias": "--swing-bias"}
 """Options of the fixed-base stages (OPREQ and its alternatives, the compass stage's stored data)."""
 
 

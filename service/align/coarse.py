@@ -17,6 +17,7 @@ from .observations import ObservationSource
 from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
 from .solvers import CentredWahba, RecursiveK, WhitenedWahba
 from .strapdown import InertialIntegrator
+from .swing_bias import SwingBias
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,10 +50,13 @@ class InertialCoarseAlignment:
         sample's time stamp, since a sample's time marks the end of its interval.
     obs_interval_s : time between observations fed to the solver (s).
     disturbance_velocity_mps : bounded velocity-like disturbance of α in OPREQ's noise model (m/s).
+    swing_bias : estimate the accelerometer bias seen through a swinging body and take its term out of α
+        before the solver (a fixed site only: :mod:`.swing_bias`); None leaves α as integrated.
     """
 
     def __init__(self, source: ObservationSource, grade: SensorGrade, solver: RecursiveK | CentredWahba,
-                 sample_period_s: float, obs_interval_s: float = 0.1, disturbance_velocity_mps: float = 1e-3) -> None:
+                 sample_period_s: float, obs_interval_s: float = 0.1, disturbance_velocity_mps: float = 1e-3,
+                 swing_bias: SwingBias | None = None) -> None:
         if obs_interval_s < sample_period_s:
             raise ValueError("obs_interval_s must be at least one sample period")
         self.source = source
@@ -62,6 +66,7 @@ class InertialCoarseAlignment:
         self.sample_period_s = sample_period_s
         self.obs_interval_s = obs_interval_s
         self.disturbance_velocity_mps = disturbance_velocity_mps
+        self.swing_bias = swing_bias
         self.integrator = InertialIntegrator()
         self._lat = source.site.lat
         self._gravity = source.site.gravity
@@ -124,7 +129,10 @@ class InertialCoarseAlignment:
                 epoch = aid_epoch[due]
                 due = due[np.diff(epoch, prepend=self._aid_epoch) > 0.0]
                 self._aid_epoch = max(self._aid_epoch, float(epoch[-1])) if len(epoch) else self._aid_epoch
-        b, r = self.source.vectors(elapsed_s[due], alpha[due], q_b_b0[due], None if aid is None else aid[due])
+        alpha_due = alpha[due]
+        if self.swing_bias is not None:
+            alpha_due = self.swing_bias.correct(elapsed_s[due], alpha_due, q_b_b0[due])
+        b, r = self.source.vectors(elapsed_s[due], alpha_due, q_b_b0[due], None if aid is None else aid[due])
         return (due, *self.prepare_pairs(elapsed_s[due], b, r))
 
     def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -144,6 +152,7 @@ class InertialCoarseAlignment:
         clone.integrator = copy.copy(self.integrator)
         clone.source = copy.copy(self.source)   # an aided source's store: the clone writes only past its end
         clone.solver = copy.copy(self.solver)
+        clone.swing_bias = copy.copy(self.swing_bias)
         return clone
 
     @property

@@ -1,0 +1,114 @@
+"""The accelerometer bias seen through a swinging body: estimated and taken out of α (fixed site, seed 000).
+
+An accelerometer bias ∇ is fixed in body axes. On a static base it turns with the Earth like gravity does,
+and the attitude fit takes it as a tilt: the level and heading limits of alignment-math §3.3. On a
+swinging base it also turns with the swing, and its integral in α(t) = ∫ C_b^{b0} f^b dτ gains a term
+D(t) ∇ with D(t) = ∫ (C_b^{b0} − E_b0) dτ: bounded, but with a non-zero mean (a swing that starts at its
+centre integrates to (1 − cos ωt)/ω). The fit takes that term as heading early on and walks it off
+slowly (seed-000 swing, bias alone: 0.008° above the limit at 100 s, 0.0017° at 200 s).
+
+The term is linear in ∇ and the gyros give D(t), so ∇ can be estimated and the term removed, leaving the
+static part (the limit) as it is. On a fixed site, with E(t) = ∫_0^t C_{n}^{n0} dτ and b0 axes,
+
+    α(t) = C_{n0}^{b0} E(t) x + M(t) ∇,     M(t) = ∫_0^t C_b^{b0} dτ,
+
+where x = g·Up plus the static part of the bias. E(t) = P1 I + P2 [u×] + (t − P1) u uᵀ with P1 = sin(Ωt)/Ω,
+P2 = (1 − cos Ωt)/Ω and u the Earth axis, so the first term is P1 b + P2 c + (t − P1) a with free vectors
+a, b, c: a linear model with 12 unknowns that needs no attitude. Its increments between observations carry
+white accelerometer noise (VRW² Δt per axis), and a least-squares fit with the datasheet bias as prior on ∇
+keeps O(1) sums. On a static base M(t) is the static term itself, the data say nothing of ∇ and the
+prior keeps ∇̂ at 0: nothing changes there.
+
+The correction needs the Earth axis in b0, w = C_{n0}^{b0} u, for the static part E_b0(t) = P1 I +
+P2 [w×] + (t − P1) w wᵀ of M(t); c = w × b gives it from the fit (the sign of the latitude settles the
+component along b). Its error enters only through Ω t², so an early, rough w costs nothing.
+M(t) is integrated by the trapezoid rule at the observation instants: the error is (ω Δt)²/12 of the
+swing's part (0.2 % for a 0.2-Hz swing and 0.1-s observations).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .conventions import dcm_from_quat, skew
+from .earth import OMEGA_IE
+
+N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
+RIDGE = 1e-12   # on the equilibrated normal matrix: keeps the first, rank-deficient solves finite
+
+
+def earth_basis(elapsed_s: float) -> np.ndarray:
+    """(P1, P2, t − P1) of E(t) = ∫_0^t C_{n}^{n0} dτ at ``elapsed_s`` seconds (s each)."""
+    theta = OMEGA_IE * elapsed_s
+    return np.array([np.sin(theta) / OMEGA_IE, (1.0 - np.cos(theta)) / OMEGA_IE,
+                     elapsed_s - np.sin(theta) / OMEGA_IE])
+
+
+class SwingBias:
+    """Recursive estimate of the body-axis accelerometer bias ∇ from α and C_b^{b0}, and α with D(t)∇̂ removed.
+
+    Parameters
+    ----------
+    lat : latitude (rad); its sign fixes the Earth axis' component along gravity.
+    acc_bias_ms2 : 1-σ prior of each axis of ∇ (m/s², the datasheet's).
+    acc_vrw_ms_rts : velocity random walk (m/s/√s): the noise of the α increments.
+
+    State updates assign new arrays (never write into old ones), so a shallow copy runs ahead independently.
+    """
+
+    def __init__(self, lat: float, acc_bias_ms2: float, acc_vrw_ms_rts: float) -> None:
+        self._lat_sign = float(np.sign(lat))
+        self._vrw2 = acc_vrw_ms_rts**2
+        self.normal = np.zeros((N_PARAMS, N_PARAMS))
+        self.normal[9:, 9:] = np.eye(3) / acc_bias_ms2**2
+        self.rhs = np.zeros(N_PARAMS)
+        self.params = np.zeros(N_PARAMS)
+        self._last = (0.0, np.zeros(3), np.eye(3), np.zeros((3, 3)))   # t, α, C_b^{b0}, M at the last observation
+
+    @property
+    def nabla(self) -> np.ndarray:
+        """∇̂ (3,) m/s², body axes."""
+        return self.params[9:]
+
+    def correct(self, elapsed_s: np.ndarray, alpha: np.ndarray, q_b_b0: np.ndarray) -> np.ndarray:
+        """α (M, 3) m/s at successive observations, ``elapsed_s`` (M,) s after the start, attitude C_b^{b0} as
+        quaternions (M, 4): fold each into the fit, then return it with D(t)∇̂ removed (the fit so far)."""
+        out = np.empty_like(alpha)
+        C = dcm_from_quat(q_b_b0)
+        for k in range(len(elapsed_s)):
+            out[k] = self._observe(float(elapsed_s[k]), alpha[k], C[k])
+        return out
+
+    def _observe(self, t: float, alpha: np.ndarray, C_b_b0: np.ndarray) -> np.ndarray:
+        t_last, alpha_last, C_last, M_last = self._last
+        dt = t - t_last
+        M = M_last + 0.5 * dt * (C_last + C_b_b0)
+        basis = earth_basis(t)
+        if dt > 0.0:
+            step = basis - earth_basis(t_last)
+            X = np.hstack((step[0] * np.eye(3), step[1] * np.eye(3), step[2] * np.eye(3), M - M_last))
+            weight = 1.0 / max(self._vrw2 * dt, 1e-300)
+            self.normal = self.normal + weight * X.T @ X
+            self.rhs = self.rhs + weight * X.T @ (alpha - alpha_last)
+            scale = 1.0 / np.sqrt(np.maximum(np.diag(self.normal), 1e-300))
+            scaled = self.normal * scale[:, None] * scale[None, :] + RIDGE * np.eye(N_PARAMS)
+            self.params = scale * np.linalg.solve(scaled, scale * self.rhs)
+        self._last = (t, alpha.copy(), C_b_b0, M)
+        return alpha - (M - self._static_part(basis)) @ self.nabla
+
+    def earth_axis_b0(self) -> np.ndarray | None:
+        """The Earth axis in b0 axes, w = C_{n0}^{b0} u (unit), from the fit: c = w × b; None before a fit."""
+        b, c = self.params[0:3], self.params[3:6]
+        b2 = float(b @ b)
+        if b2 == 0.0:
+            return None
+        along = self._lat_sign * np.sqrt(max(0.0, 1.0 - float(c @ c) / b2))
+        w = np.cross(b, c) / b2 + along * b / np.sqrt(b2)
+        return w / np.linalg.norm(w)
+
+    def _static_part(self, basis: np.ndarray) -> np.ndarray:
+        """E_b0(t) = C_{n0}^{b0} E(t) C_{b0}^{n0}, the part of M(t) a static base has (zero before a fit: ∇̂ is
+        0 then as well)."""
+        w = self.earth_axis_b0()
+        if w is None:
+            return np.zeros((3, 3))
+        return basis[0] * np.eye(3) + basis[1] * skew(w) + basis[2] * np.outer(w, w)
