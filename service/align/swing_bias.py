@@ -3,14 +3,15 @@
 An accelerometer bias ∇ is fixed in body axes. On a static base it turns with the Earth like gravity does,
 and the attitude fit takes it as a tilt: the level and heading limits of alignment-math §3.3. On a
 swinging base it also turns with the swing, and its integral in α(t) = ∫ C_b^{b0} f^b dτ gains a term
-D(t) ∇ with D(t) = ∫ (C_b^{b0} − E_b0) dτ: bounded, but with a non-zero mean (a swing that starts at its
-centre integrates to (1 − cos ωt)/ω). The fit takes that term as heading early on and walks it off
-slowly (seed-000 swing, bias alone: 0.008° above the limit at 100 s, 0.0017° at 200 s).
+D(t) ∇, D(t) the part of M(t) = ∫ C_b^{b0} dτ that a static base does not have: bounded, but with a
+non-zero mean (a swing that starts at its centre integrates to (1 − cos ωt)/ω). The fit takes that term
+as heading early on and walks it off slowly (seed-000 swing, bias alone: 0.008° above the limit at
+100 s, 0.0017° at 200 s).
 
 The term is linear in ∇ and the gyros give D(t), so ∇ can be estimated and the term removed, leaving the
 static part (the limit) as it is. On a fixed site, with E(t) = ∫_0^t C_{n}^{n0} dτ and b0 axes,
 
-    α(t) = C_{n0}^{b0} E(t) x + M(t) ∇,     M(t) = ∫_0^t C_b^{b0} dτ,
+    α(t) = C_{n0}^{b0} E(t) x + M(t) ∇,
 
 where x = g·Up plus the static part of the bias. E(t) = P1 I + P2 [u×] + (t − P1) u uᵀ with P1 = sin(Ωt)/Ω,
 P2 = (1 − cos Ωt)/Ω and u the Earth axis, so the first term is P1 b + P2 c + (t − P1) a with free vectors
