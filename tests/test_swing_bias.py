@@ -9,8 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from sinsalign.service.align.conventions import DEG, UG_TO_MS2, skew
-from sinsalign.service.align.earth import C_n_n0_fixed
-from sinsalign.service.align.swing_bias import earth_basis
+from sinsalign.service.align.earth import C_n_n0_fixed, earth_turn_integrals
 from sinsalign.service.config import config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 from sinsalign.tools.evaluate import COARSE_ONLY, run_once, window_stats
@@ -21,9 +20,9 @@ SWING_BIAS = config_from_mapping({"alignment": {"swing_bias": True}, **COARSE_ON
 PLAIN = config_from_mapping(COARSE_ONLY)
 
 
-def test_the_earth_basis_integrates_the_earth_turn() -> None:
+def test_the_earth_turn_integrals_match_quadrature() -> None:
     lat, t = 32.0 * DEG, 300.0
-    P1, P2, P3 = earth_basis(t)
+    P1, P2, P3 = earth_turn_integrals(t)
     u = np.array([0.0, np.cos(lat), np.sin(lat)])
     tau = (np.arange(30000) + 0.5) * t / 30000
     quadrature = C_n_n0_fixed(lat, tau).sum(axis=0) * t / 30000

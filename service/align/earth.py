@@ -106,17 +106,29 @@ def C_n_n0_fixed(lat: float, dt_s: np.ndarray) -> np.ndarray:
             + (1.0 - c)[..., None, None] * outer)
 
 
+def earth_turn_integrals(dt_s: np.ndarray) -> np.ndarray:
+    """(sin(Ωt)/Ω, (1 − cos Ωt)/Ω, t − sin(Ωt)/Ω) in s, shape (..., 3), of ``dt_s`` (...,) since the start.
+
+    They make E(t) = ∫_0^t C_{n(τ)}^{n0} dτ = P1 I + P2 [u×] + P3 u uᵀ (u the Earth axis, see
+    :func:`C_n_n0_fixed`).
+    """
+    t = np.asarray(dt_s, dtype=float)
+    wt = OMEGA_IE * t
+    # t - sin(Ωt)/Ω loses all digits for small Ωt in floating point: use its series there
+    t_minus_sin = np.where(wt > 1e-3, t - np.sin(wt) / OMEGA_IE,
+                           t * wt**2 / 6.0 * (1.0 - wt**2 / 20.0 + wt**4 / 840.0))
+    one_minus_cos = 2.0 * np.sin(0.5 * wt) ** 2 / OMEGA_IE
+    return np.stack((np.sin(wt) / OMEGA_IE, one_minus_cos, t_minus_sin), axis=-1)
+
+
 def beta_fixed(lat: float, gravity: float, dt_s: np.ndarray) -> np.ndarray:
-    """β(t) = -∫_0^t C_{n(τ)}^{n0} g^n dτ for a fixed site, in n0 (ENU at t0) axes, m/s.
+    """β(t) = -∫_0^t C_{n(τ)}^{n0} g^n dτ = g E(t) Up for a fixed site, in n0 (ENU at t0) axes, m/s.
 
     Closed form (alignment-math.md §3): the local up vector turns east about the Earth axis.
     ``dt_s`` (...,) is the time since the alignment start; returns (..., 3).
     """
     t = np.asarray(dt_s, dtype=float)
     cL, sL = np.cos(lat), np.sin(lat)
-    wt = OMEGA_IE * t
-    # t - sin(Ωt)/Ω loses all digits for small Ωt in floating point: use its series there
-    t_minus_sin = np.where(wt > 1e-3, t - np.sin(wt) / OMEGA_IE,
-                           t * wt**2 / 6.0 * (1.0 - wt**2 / 20.0 + wt**4 / 840.0))
-    one_minus_cos = 2.0 * np.sin(0.5 * wt) ** 2 / OMEGA_IE
+    integrals = earth_turn_integrals(t)
+    one_minus_cos, t_minus_sin = integrals[..., 1], integrals[..., 2]
     return gravity * np.stack((cL * one_minus_cos, sL * cL * t_minus_sin, t - cL**2 * t_minus_sin), axis=-1)

@@ -31,17 +31,10 @@ from __future__ import annotations
 import numpy as np
 
 from .conventions import dcm_from_quat, skew
-from .earth import OMEGA_IE
+from .earth import earth_turn_integrals
 
 N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
 RIDGE = 1e-12   # on the equilibrated normal matrix: keeps the first, rank-deficient solves finite
-
-
-def earth_basis(elapsed_s: float) -> np.ndarray:
-    """(P1, P2, t − P1) of E(t) = ∫_0^t C_{n}^{n0} dτ at ``elapsed_s`` seconds (s each)."""
-    theta = OMEGA_IE * elapsed_s
-    return np.array([np.sin(theta) / OMEGA_IE, (1.0 - np.cos(theta)) / OMEGA_IE,
-                     elapsed_s - np.sin(theta) / OMEGA_IE])
 
 
 class SwingBias:
@@ -63,7 +56,8 @@ class SwingBias:
         self.normal[9:, 9:] = np.eye(3) / acc_bias_ms2**2
         self.rhs = np.zeros(N_PARAMS)
         self.params = np.zeros(N_PARAMS)
-        self._last = (0.0, np.zeros(3), np.eye(3), np.zeros((3, 3)))   # t, α, C_b^{b0}, M at the last observation
+        # at the last observation: t, E(t)'s integrals, α, C_b^{b0}, M
+        self._last = (0.0, np.zeros(3), np.zeros(3), np.eye(3), np.zeros((3, 3)))
 
     @property
     def nabla(self) -> np.ndarray:
@@ -75,17 +69,17 @@ class SwingBias:
         quaternions (M, 4): fold each into the fit, then return it with D(t)∇̂ removed (the fit so far)."""
         out = np.empty_like(alpha)
         C = dcm_from_quat(q_b_b0)
+        basis = earth_turn_integrals(elapsed_s)
         for k in range(len(elapsed_s)):
-            out[k] = self._observe(float(elapsed_s[k]), alpha[k], C[k])
+            out[k] = self._observe(float(elapsed_s[k]), basis[k], alpha[k], C[k])
         return out
 
-    def _observe(self, t: float, alpha: np.ndarray, C_b_b0: np.ndarray) -> np.ndarray:
-        t_last, alpha_last, C_last, M_last = self._last
+    def _observe(self, t: float, basis: np.ndarray, alpha: np.ndarray, C_b_b0: np.ndarray) -> np.ndarray:
+        t_last, basis_last, alpha_last, C_last, M_last = self._last
         dt = t - t_last
         M = M_last + 0.5 * dt * (C_last + C_b_b0)
-        basis = earth_basis(t)
         if dt > 0.0:
-            step = basis - earth_basis(t_last)
+            step = basis - basis_last
             X = np.hstack((step[0] * np.eye(3), step[1] * np.eye(3), step[2] * np.eye(3), M - M_last))
             weight = 1.0 / max(self._vrw2 * dt, 1e-300)
             self.normal = self.normal + weight * X.T @ X
@@ -93,7 +87,7 @@ class SwingBias:
             scale = 1.0 / np.sqrt(np.maximum(np.diag(self.normal), 1e-300))
             scaled = self.normal * scale[:, None] * scale[None, :] + RIDGE * np.eye(N_PARAMS)
             self.params = scale * np.linalg.solve(scaled, scale * self.rhs)
-        self._last = (t, alpha.copy(), C_b_b0, M)
+        self._last = (t, basis, alpha.copy(), C_b_b0, M)
         return alpha - (M - self._static_part(basis)) @ self.nabla
 
     def earth_axis_b0(self) -> np.ndarray | None:
