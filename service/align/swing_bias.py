@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import dcm_from_quat, skew
+from .conventions import cross, dcm_from_quat, skew
 from .earth import earth_turn_integrals
 
 N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
@@ -66,44 +66,63 @@ class SwingBias:
 
     def correct(self, elapsed_s: np.ndarray, alpha: np.ndarray, q_b_b0: np.ndarray) -> np.ndarray:
         """α (M, 3) m/s at successive observations, ``elapsed_s`` (M,) s after the start, attitude C_b^{b0} as
-        quaternions (M, 4): fold each into the fit, then return it with D(t)∇̂ removed (the fit so far)."""
-        out = np.empty_like(alpha)
+        quaternions (M, 4): fold each into the fit, then return it with D(t)∇̂ removed (the fit up to it).
+
+        All M observations at once: running sums (sequential, as one at a time would add them) and a stack
+        of solves, so the bits do not depend on how the observations are grouped.
+        """
+        if len(elapsed_s) == 0:
+            return alpha.copy()
         C = dcm_from_quat(q_b_b0)
         basis = earth_turn_integrals(elapsed_s)
-        for k in range(len(elapsed_s)):
-            out[k] = self._observe(float(elapsed_s[k]), basis[k], alpha[k], C[k])
-        return out
-
-    def _observe(self, t: float, basis: np.ndarray, alpha: np.ndarray, C_b_b0: np.ndarray) -> np.ndarray:
         t_last, basis_last, alpha_last, C_last, M_last = self._last
-        dt = t - t_last
-        M = M_last + 0.5 * dt * (C_last + C_b_b0)
-        if dt > 0.0:
-            step = basis - basis_last
-            X = np.hstack((step[0] * np.eye(3), step[1] * np.eye(3), step[2] * np.eye(3), M - M_last))
-            weight = 1.0 / max(self._vrw2 * dt, 1e-300)
-            self.normal = self.normal + weight * X.T @ X
-            self.rhs = self.rhs + weight * X.T @ (alpha - alpha_last)
-            scale = 1.0 / np.sqrt(np.maximum(np.diag(self.normal), 1e-300))
-            scaled = self.normal * scale[:, None] * scale[None, :] + RIDGE * np.eye(N_PARAMS)
-            self.params = scale * np.linalg.solve(scaled, scale * self.rhs)
-        self._last = (t, basis, alpha.copy(), C_b_b0, M)
-        return alpha - (M - self._static_part(basis)) @ self.nabla
+        dt = np.diff(elapsed_s, prepend=t_last)
+        dM = 0.5 * dt[:, None, None] * (np.concatenate((C_last[None], C[:-1])) + C)
+        M = _running_sum(M_last, dM)
+        # the rows of each increment's design matrix [ΔP1 I, ΔP2 I, ΔP3 I, ΔM] (M, 3, 12)
+        step = np.diff(basis, axis=0, prepend=basis_last[None])
+        X = np.concatenate((step[:, None, :, None] * np.eye(3)[None, :, None, :], dM[:, :, None, :]),
+                           axis=2).reshape(-1, 3, N_PARAMS)
+        dalpha = np.diff(alpha, axis=0, prepend=alpha_last[None])
+        weight = 1.0 / np.maximum(self._vrw2 * dt, 1e-300)   # observations are strictly later than the last
+        XtX = sum(X[:, r, :, None] * X[:, r, None, :] for r in range(3))
+        Xtz = sum(X[:, r, :] * dalpha[:, r, None] for r in range(3))
+        normal = _running_sum(self.normal, weight[:, None, None] * XtX)
+        rhs = _running_sum(self.rhs, weight[:, None] * Xtz)
+        scale = 1.0 / np.sqrt(np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-300))
+        scaled = normal * scale[:, :, None] * scale[:, None, :] + RIDGE * np.eye(N_PARAMS)
+        params = scale * np.linalg.solve(scaled, (scale * rhs)[:, :, None])[:, :, 0]
+        self.normal, self.rhs, self.params = normal[-1], rhs[-1], params[-1]
+        self._last = (float(elapsed_s[-1]), basis[-1], alpha[-1].copy(), C[-1], M[-1])
+        D = M - _static_part(basis, _earth_axis(params, self._lat_sign))
+        nabla = params[:, None, 9:]   # written out, not a matmul: the same bits whatever M is
+        return alpha - (D[:, :, 0] * nabla[:, :, 0] + D[:, :, 1] * nabla[:, :, 1] + D[:, :, 2] * nabla[:, :, 2])
 
     def earth_axis_b0(self) -> np.ndarray | None:
         """The Earth axis in b0 axes, w = C_{n0}^{b0} u (unit), from the fit: c = w × b; None before a fit."""
-        b, c = self.params[0:3], self.params[3:6]
-        b2 = float(b @ b)
-        if b2 == 0.0:
-            return None
-        along = self._lat_sign * np.sqrt(max(0.0, 1.0 - float(c @ c) / b2))
-        w = np.cross(b, c) / b2 + along * b / np.sqrt(b2)
-        return w / np.linalg.norm(w)
+        w = _earth_axis(self.params[None], self._lat_sign)[0]
+        return None if np.isnan(w).any() else w
 
-    def _static_part(self, basis: np.ndarray) -> np.ndarray:
-        """E_b0(t) = C_{n0}^{b0} E(t) C_{b0}^{n0}, the part of M(t) a static base has (zero before a fit: ∇̂ is
-        0 then as well)."""
-        w = self.earth_axis_b0()
-        if w is None:
-            return np.zeros((3, 3))
-        return basis[0] * np.eye(3) + basis[1] * skew(w) + basis[2] * np.outer(w, w)
+
+def _running_sum(start: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """start + steps[0], start + steps[0] + steps[1], …: added one at a time, left to right."""
+    return np.cumsum(np.concatenate((start[None], steps)), axis=0)[1:]
+
+
+def _earth_axis(params: np.ndarray, lat_sign: float) -> np.ndarray:
+    """w (…, 3) from the fitted b, c of ``params`` (…, 12): c = w × b, |w| = 1, the sign of the latitude settling
+    its part along b. NaN where b = 0 (no fit yet)."""
+    b, c = params[..., 0:3], params[..., 3:6]
+    b2 = np.sum(b * b, axis=-1, keepdims=True)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        along = lat_sign * np.sqrt(np.maximum(0.0, 1.0 - np.sum(c * c, axis=-1, keepdims=True) / b2))
+        w = cross(b, c) / b2 + along * b / np.sqrt(b2)
+        return w / np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
+
+
+def _static_part(basis: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """E_b0(t) = C_{n0}^{b0} E(t) C_{b0}^{n0} = P1 I + P2 [w×] + P3 w wᵀ (…, 3, 3), the part of M(t) a static base
+    has; zero where w is unknown (no fit yet: ∇̂ is 0 then as well)."""
+    w = np.nan_to_num(w)
+    return (basis[..., 0, None, None] * np.eye(3) + basis[..., 1, None, None] * skew(w)
+            + basis[..., 2, None, None] * (w[..., :, None] * w[..., None, :]))
