@@ -14,7 +14,7 @@ from typing import Any
 from ..protocol.keys import UnitKeys
 from ..protocol.messages import AIDING_FIELDS as AIDING_KINDS
 from .align.compass import GainSchedule
-from .align.solvers import SOLVERS
+from .align.solvers import ALIGNMENT_SOLVERS, SOLVERS
 
 
 class ConfigError(ValueError):
@@ -35,12 +35,13 @@ class SensorConfig:
 class AlignmentConfig:
     """Coarse alignment (inertial frame, seed 000)."""
 
-    solver: str = "opreq"
+    solver: str = "auto"
+    """One of :data:`~.align.solvers.ALIGNMENT_SOLVERS`; "auto": OPREQ, or GLS where the gyro's walk dominates."""
     request_rho: float = 0.01
     obs_interval_s: float = 0.1
     disturbance_velocity_mps: float = 1e-3
     converged_heading_sigma_deg: float = 0.1
-    swing_bias: bool = False
+    swing_bias: bool = True
     """Estimate the accelerometer bias seen through a swinging body and take its term out of α (fixed base)."""
 
 
@@ -217,8 +218,8 @@ class Config:
 
 def _check(config: Config) -> Config:
     a, s, o, f = config.alignment, config.sensor, config.output, config.fine
-    if a.solver not in SOLVERS:
-        raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(SOLVERS)}")
+    if a.solver not in ALIGNMENT_SOLVERS:
+        raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(ALIGNMENT_SOLVERS)}")
     z = config.zenoh
     if z.mode not in ZENOH_MODES:
         raise ConfigError(f"zenoh.mode: {z.mode!r} is not one of {', '.join(ZENOH_MODES[1:])}")

@@ -293,6 +293,7 @@ class Daemon:
         """Loop until :meth:`stop` (or SIGINT/SIGTERM in ``sinsalign serve``), then close cleanly."""
         log.info("serving %s (attitude on %s, status on %s)", self._inputs_text(), self.keys.attitude,
                  self.keys.status)
+        log.info("alignment: %s", self.pipeline.stages_text())
         try:
             while not self._stop.is_set():
                 try:

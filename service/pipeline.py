@@ -20,7 +20,7 @@ from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.noise_check import VERDICT_BLOCKS, NoiseMeter
 from .align.observations import FixedSiteSource
-from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, bias_limit_rad
+from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, auto_solver, bias_limit_rad
 from .align.solvers import CentredWahba, RecursiveK, make_solver
 from .align.swing_bias import SwingBias
 from .config import Config, ConfigError
@@ -104,6 +104,9 @@ class AlignmentPipeline:
         self.period_s = config.output.period_s
         self.site = site
         self.grade = grade_from(config, datasheet)
+        # the coarse solver that runs: alignment.solver, or the one "auto" picks for this datasheet
+        self.solver_name = (auto_solver(self.grade, site.lat, site.gravity, a.converged_heading_sigma_deg)
+                            if a.solver == "auto" else a.solver)
         self.sigma_grade = self.grade   # the datasheet's, until the data show more noise (service/align/noise_check.py)
         self.noise = NoiseMeter(self.sample_period_s) if self.checks_noise else None
         self.noise_unchecked = self.noise is not None   # σ still waits for the meter's first verdict
@@ -153,9 +156,19 @@ class AlignmentPipeline:
         begun here, so an observation without it is a dropout, not a wait."""
         self.coarse.aid_started = self.coarse.aid_started or previous.coarse.aid_started
 
+    def stages_text(self) -> str:
+        """The stages that run, for the operator's log: the coarse solver ("auto" says what it chose), the swing-bias
+        fit and the compass stage; an aided pipeline names its aid (its stages are its own)."""
+        if self.aid_width:
+            return f"{self.aid_kind}-aided alignment"
+        a = self.config.alignment
+        chosen = f" (auto: {'gyro walk' if self.solver_name == 'gls' else 'accelerometer noise'} dominates)"
+        return (f"coarse solver {self.solver_name}{chosen if a.solver == 'auto' else ''}, swing-bias fit "
+                f"{'on' if a.swing_bias else 'off'}, compass stage {'on' if self._with_fine else 'off'}")
+
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment
-        solver = make_solver(a.solver, a.request_rho, self.grade, self.site.gravity, a.disturbance_velocity_mps)
+        solver = make_solver(self.solver_name, a.request_rho, self.grade, self.site.gravity, a.disturbance_velocity_mps)
         swing_bias = (SwingBias(self.site.lat, self.grade.acc_bias_ms2, self.grade.acc_vrw_ms_rts) if a.swing_bias
                       else None)
         return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, solver, self.sample_period_s,

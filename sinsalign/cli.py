@@ -58,7 +58,7 @@ SEED = _number_above(0, inclusive=True, kind=int)
 def _overrides(args: argparse.Namespace) -> dict:
     alignment = {k: v for k, v in (("solver", args.solver), ("request_rho", args.rho),
                                    ("obs_interval_s", args.obs_interval),
-                                   ("swing_bias", True if args.swing_bias else None)) if v is not None}
+                                   ("swing_bias", args.swing_bias)) if v is not None}
     out = {"alignment": alignment} if alignment else {}
     fine = {k: v for k, v in (("enabled", False if args.no_fine else None), ("stored_pairs", args.stored_pairs))
             if v is not None}
@@ -72,23 +72,24 @@ def _overrides(args: argparse.Namespace) -> dict:
 def _add_alignment_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("alignment (override the configuration file)")
     g.add_argument("--config", metavar="FILE", help="TOML configuration (see README, 'Configuration')")
-    g.add_argument("--solver", choices=("opreq", "request", "qmethod", "centred", "gls"),
-                   help="opreq: optimal fading gain (default); request: fixed gain --rho; qmethod: batch OBA; "
+    g.add_argument("--solver", choices=("auto", "opreq", "request", "qmethod", "centred", "gls"),
+                   help="auto (default): opreq, or gls where the datasheet's gyro angle random walk dominates the "
+                   "heading noise; opreq: optimal fading gain; request: fixed gain --rho; qmethod: batch OBA; "
                    "centred: Wahba with a free constant offset (for the aided modes); gls: generalised least "
                    "squares on whitened α increments (fixed base; at the gyro's noise floor, see README)")
     g.add_argument("--rho", type=float, help="fixed fading gain of --solver request, e.g. 0.01")
     g.add_argument("--obs-interval", type=float, metavar="S", help="seconds between vector observations (0.1)")
-    g.add_argument("--swing-bias", action="store_true", default=None,
+    g.add_argument("--swing-bias", action=argparse.BooleanOptionalAction, default=None,
                    help="estimate the accelerometer bias seen through a swinging body and take its term out of the "
-                   "coarse stage's vectors (fixed base; removes a slow heading transient on a swinging base, see "
-                   "README 'Swinging bias')")
-    g.add_argument("--no-fine", action="store_true", help="OPREQ coarse alignment only (no compass hand-over)")
+                   "coarse stage's vectors (on by default; fixed base; removes a slow heading transient on a "
+                   "swinging base, see README 'Swinging bias'); --no-swing-bias leaves the vectors as integrated")
+    g.add_argument("--no-fine", action="store_true", help="coarse alignment only (no compass hand-over)")
     g.add_argument("--stored-pairs", type=int, metavar="N",
                    help="backward+forward passes over the stored first 80 s (default 3; 0 = none)")
 
 
 FIXED_BASE_OPTIONS = {"solver": "--solver", "rho": "--rho", "stored_pairs": "--stored-pairs",
-                      "swing_bias": "--swing-bias"}
+                      "swing_bias": "--[no-]swing-bias"}
 """Options of the fixed-base stages (OPREQ and its alternatives, the compass stage's stored data)."""
 
 
@@ -127,7 +128,7 @@ def cmd_replay(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - start
     last = summary.last
     print(f"{summary.samples} samples → {summary.records} results in {args.out} "
-          f"({summary.samples / max(elapsed, 1e-9):,.0f} frames/s)", file=sys.stderr)
+          f"({summary.samples / max(elapsed, 1e-9):,.0f} frames/s; {summary.stages})", file=sys.stderr)
     if last is not None:
         print(f"t = {last.t:g} s: heading {last.heading_deg:.4f}° ± {last.heading_sigma_deg:.4f}°, "
               f"pitch {last.pitch_deg:.4f}°, roll {last.roll_deg:.4f}° (level σ {last.level_sigma_deg:.4f}°), "

@@ -9,5 +9,6 @@ SEEDS = range(20)
 
 @pytest.fixture(scope="session")
 def swing_runs():
-    """The seed-000 swing scenario, 20 seeds, OPREQ alone (the coarse stage of the default configuration)."""
+    """The seed-000 swing scenario, 20 seeds, the coarse stage of the default configuration alone (auto: OPREQ here,
+    with the swing-bias fit)."""
     return monte_carlo("seed000-swing", SEEDS, COARSE_ONLY, progress=False)

@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from sinsalign.service.align.solvers import SOLVERS
+from sinsalign.service.align.solvers import ALIGNMENT_SOLVERS
 from sinsalign.service.config import (
     AlignmentConfig,
     Config,
@@ -58,11 +58,11 @@ def test_defaults() -> None:
     assert config == Config()
     assert config == config_from_mapping({})
     assert config.alignment == AlignmentConfig()
-    assert (config.alignment.solver, config.alignment.request_rho, config.alignment.obs_interval_s) == (
-        "opreq", 0.01, 0.1)
+    assert (config.alignment.solver, config.alignment.request_rho, config.alignment.obs_interval_s,
+            config.alignment.swing_bias) == ("auto", 0.01, 0.1, True)
     assert config.output.period_s == 1.0
     assert config.sensor == SensorConfig(0.01, 0.001, 50.0, 5.0)
-    assert config.as_dict()["alignment"]["solver"] == "opreq"
+    assert config.as_dict()["alignment"]["solver"] == "auto"
 
 
 def test_empty_file_gives_defaults(tmp_path: Path) -> None:
@@ -338,4 +338,4 @@ def test_the_cli_offers_every_solver_the_configuration_takes() -> None:
     """The CLI spells the solver names out (its --help must not import numpy); they must be the solvers module's."""
     replay = build_parser()._subparsers._group_actions[0].choices["replay"]
     (option,) = [a for a in replay._actions if "--solver" in a.option_strings]
-    assert tuple(option.choices) == SOLVERS
+    assert tuple(option.choices) == ALIGNMENT_SOLVERS

@@ -22,6 +22,7 @@ class ReplaySummary:
     samples: int
     records: int
     last: ResultRecord | None
+    stages: str   # what ran (AlignmentPipeline.stages_text)
 
 
 def parse_aids(specs: list[str] | None) -> dict[str, str]:
@@ -84,4 +85,4 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
         os.replace(partial, out_path)
     finally:
         partial.unlink(missing_ok=True)
-    return ReplaySummary(samples, records, last)
+    return ReplaySummary(samples, records, last, pipeline.stages_text())

@@ -113,14 +113,37 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
     T = float(elapsed_s)
     if T <= 0.0:
         return AttitudeSigma(SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG)
-    w_cos = OMEGA_IE * np.cos(lat)
     q = grade.acc_vrw_ms_rts**2
     N2 = grade.gyro_arw_rad_rts**2
     bias_heading, bias_level = bias_limit_rad(grade, lat, gravity)
     drift2 = (grade.gyro_bias_rad_s * T) ** 2
-    noise_heading2 = 12.0 * q / (gravity * w_cos) ** 2 / T**3 + 1.2 * N2 / w_cos**2 / T
+    noise_heading2 = sum(heading_noise_variances(grade, lat, gravity, T))
     noise_level2 = 4.0 * q / (gravity**2 * T) + N2 * T / 3.0
     heading2 = bias_heading**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
     level2 = bias_level**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
     return AttitudeSigma(min(float(np.sqrt(heading2)) / DEG, SIGMA_UNKNOWN_DEG),
                          min(float(np.sqrt(level2)) / DEG, SIGMA_UNKNOWN_DEG))
+
+
+def heading_noise_variances(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> tuple[float, float]:
+    """The least-squares heading variances (rad²) after ``elapsed_s`` seconds from each noise alone: the
+    accelerometer's white noise, 12 VRW² / (g Ω cos L)² / T³, and the gyro's angle random walk,
+    1.2 N² / (Ω cos L)² / T (see :func:`inertial_alignment_sigma`)."""
+    w_cos = OMEGA_IE * np.cos(lat)
+    T = float(elapsed_s)
+    return (12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2 / T**3,
+            1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2 / T)
+
+
+def auto_solver(grade: SensorGrade, lat: float, gravity: float, heading_sigma_deg: float) -> str:
+    """The coarse solver for this datasheet ("auto"): "gls" where the gyro's angle random walk dominates the heading
+    noise by the time that noise is down to ``heading_sigma_deg``, "opreq" where the accelerometer's white noise does.
+
+    OPREQ cannot weigh a walk (its errors are the same growing tilt in every later vector) and stays above the walk's
+    floor; GLS whitens it and sits on the floor, but moves more where white noise dominates (README "GLS"). The two
+    variances of :func:`heading_noise_variances` are equal at T× = √(10 q) / (N g) and both fall with T, the
+    accelerometer's faster: the walk dominates at the threshold if the noise σ at T× is still above it.
+    """
+    crossing_s = np.sqrt(10.0) * grade.acc_vrw_ms_rts / (grade.gyro_arw_rad_rts * gravity)
+    sigma_at_crossing = np.sqrt(ESTIMATOR_EFFICIENCY * sum(heading_noise_variances(grade, lat, gravity, crossing_s)))
+    return "gls" if sigma_at_crossing > heading_sigma_deg * DEG else "opreq"

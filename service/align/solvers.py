@@ -35,6 +35,8 @@ if TYPE_CHECKING:
     from .sensor_model import SensorGrade
 
 SOLVERS = ("opreq", "request", "qmethod", "centred", "gls")
+ALIGNMENT_SOLVERS = ("auto", *SOLVERS)
+"""What ``alignment.solver`` takes: "auto" picks OPREQ or GLS from the datasheet (sensor_model.auto_solver)."""
 
 
 def davenport(B: np.ndarray) -> np.ndarray:
