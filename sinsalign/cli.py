@@ -10,8 +10,9 @@ from pathlib import Path
 
 DESCRIPTION = """\
 Real-time initial alignment of a strapdown INS: recursive Optimal-REQUEST (OPREQ) coarse
-alignment in the inertial frame (level from gravity, heading from the Earth's rotation), then
-compass (gyrocompass-loop) fine alignment with stored-data backward/forward passes.
+alignment in the inertial frame (level from gravity, heading from the Earth's rotation; GLS
+instead where the datasheet's gyro walk dominates), then compass (gyrocompass-loop) fine
+alignment with stored-data backward/forward passes.
 Output phases: coarse -> fine -> aligned (or disturbed when the base moves).
 Runs as a daemon (serial/Zenoh in, Zenoh out) or offline on recorded logs, with the same results.
 
@@ -21,7 +22,7 @@ heading clockwise from true North in [0, 360). IMU logs are CSV of angle and vel
 Typical session:
   sinsalign sim seed000-swing --seed 1 --out-dir run1     # simulate a ship on a swing base
   sinsalign replay run1/imu.csv --out run1/results.jsonl   # align it as fast as the CPU goes
-  sinsalign eval seed000-swing --seeds 20 --no-fine         # Monte Carlo table and plot (OPREQ)
+  sinsalign eval seed000-swing --seeds 20 --no-fine         # Monte Carlo table and plot (coarse stage)
   sinsalign eval seed001-swing --fine                       # seed 001's compass comparison
   sinsalign eval seed000-swing --no-fine --budget          # which IMU error the heading's figures come from
   sinsalign demo                                            # the live bench in one command

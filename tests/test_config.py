@@ -278,13 +278,34 @@ def test_eval_refuses_comparisons_for_an_aided_table(capsys: pytest.CaptureFixtu
     assert "runs its table's own configurations" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("option", [["--solver", "gls"], ["--rho", "0.01"], ["--stored-pairs", "0"]])
+@pytest.mark.parametrize(("option", "named"), [(["--solver", "gls"], "--solver"), (["--rho", "0.01"], "--rho"),
+                                               (["--stored-pairs", "0"], "--stored-pairs"),
+                                               (["--swing-bias"], "--[no-]swing-bias"),
+                                               (["--no-swing-bias"], "--[no-]swing-bias")])
 def test_replay_refuses_a_fixed_base_option_in_an_aided_mode(capsys: pytest.CaptureFixture[str], tmp_path: Path,
-                                                             option: list[str]) -> None:
-    """--solver, --rho and --stored-pairs set the fixed-base stages: an aided replay ignored them silently."""
+                                                             option: list[str], named: str) -> None:
+    """--solver, --rho, --stored-pairs and --[no-]swing-bias set the fixed-base stages: an aided replay ignored them
+    silently."""
     code = main(["replay", str(tmp_path / "imu.csv"), "--aid", f"gnss={tmp_path / 'gnss.csv'}", "--out",
                  str(tmp_path / "r.jsonl"), "--no-progress", *option])
-    assert code == 2 and f"{option[0]} set the fixed-base alignment" in capsys.readouterr().err
+    assert code == 2 and f"{named} set the fixed-base alignment" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("scenario", "options", "stages"), [
+    ("seed000-turntable", [], "coarse solver gls (auto: gyro walk dominates), swing-bias fit on, compass stage on"),
+    ("static", ["--no-fine", "--no-swing-bias"],
+     "coarse solver opreq (auto: accelerometer noise dominates), swing-bias fit off, compass stage off"),
+    ("static", ["--solver", "qmethod"], "coarse solver qmethod, swing-bias fit on, compass stage on")])
+def test_replay_says_which_stages_ran(capsys: pytest.CaptureFixture[str], tmp_path: Path, scenario: str,
+                                      options: list[str], stages: str) -> None:
+    """The log's datasheet decides what auto runs (the turntable's gyro walk: GLS), and the replay says so."""
+    from dataclasses import replace as _replace
+
+    from sinsalign.tools.sim.files import write_simulation
+    from sinsalign.tools.sim.scenarios import get_scenario
+    files = write_simulation(_replace(get_scenario(scenario), duration_s=2.0), 0, tmp_path)
+    assert main(["replay", str(files.imu_csv), "--out", str(tmp_path / "r.jsonl"), "--no-progress", *options]) == 0
+    assert f"; {stages})" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv", [["benchmark", "--stream-hours", "0.001"], ["soak", "--hours", "0.1"]])

@@ -28,7 +28,7 @@ from .sim.imu import ERROR_SOURCES, simulate
 from .sim.scenarios import Scenario, get_scenario
 
 COARSE_ONLY = {"fine": {"enabled": False}}
-"""Overrides that stop the pipeline after the coarse stage (seed 000's OPREQ alone)."""
+"""Overrides that stop the pipeline after the coarse stage (seed 000's inertial-frame alignment alone)."""
 SETTLE_BAND_DEG = 0.1
 HONEST_FROM_S = 30.0
 
