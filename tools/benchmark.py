@@ -41,16 +41,19 @@ class ReplayBench:
         return self.samples / self.seconds
 
 
-def bench_replay(scenario_name: str = "seed000-swing", duration_s: float = 600.0) -> ReplayBench:
-    """Time ``sinsalign replay`` (CSV parse + pipeline + JSONL) on a simulated log, and the pipeline alone."""
+def bench_replay(scenario_name: str = "seed000-swing", duration_s: float = 600.0,
+                 config: Config | None = None) -> ReplayBench:
+    """Time ``sinsalign replay`` (CSV parse + pipeline + JSONL) on a simulated log, and the pipeline alone
+    (``config``: the default configuration if None)."""
+    config = config or Config()
     scenario = replace(get_scenario(scenario_name), duration_s=duration_s)
     with tempfile.TemporaryDirectory() as tmp:
         files = write_simulation(scenario, 1, tmp)
         start = time.perf_counter()
-        summary = replay(files.imu_csv, Path(tmp) / "out.jsonl", Config(), progress=False)
+        summary = replay(files.imu_csv, Path(tmp) / "out.jsonl", config, progress=False)
         elapsed = time.perf_counter() - start
     chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, duration_s, 1))
-    pipeline = AlignmentPipeline(Config(), scenario.site, scenario.rate_hz)
+    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet())
     start = time.perf_counter()
     for c in chunks:
         pipeline.process(c.t, c.dtheta, c.dv)

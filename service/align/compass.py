@@ -48,6 +48,8 @@ from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma
 
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
+EYE3 = np.eye(3)
+EYE3.flags.writeable = False
 
 
 def level_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float]:
@@ -113,8 +115,8 @@ def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
     angle = float(np.sqrt(x * x + y * y + z * z))
     S = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
     if angle < 1e-8:
-        return np.eye(3) + S + 0.5 * S @ S
-    return np.eye(3) + np.sin(angle) / angle * S + (1.0 - np.cos(angle)) / angle**2 * S @ S
+        return EYE3 + S + 0.5 * S @ S
+    return EYE3 + np.sin(angle) / angle * S + (1.0 - np.cos(angle)) / angle**2 * S @ S
 
 
 def expm(A: np.ndarray) -> np.ndarray:
@@ -171,6 +173,8 @@ class CompassLoops:
         self.omega_sin = OMEGA_IE * np.sin(site.lat)
         self.omega_ie_n = site.omega_ie_n
         self._F_cache: dict[tuple, np.ndarray] = {}
+        self._gains_last: tuple[float, tuple] = (np.nan, ((), None))
+        self._Q_cache: dict[tuple, np.ndarray] = {}
 
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float,
               heading_sigma_rad: float, t_loop_s: float = 0.0) -> CompassState:
@@ -185,9 +189,12 @@ class CompassLoops:
 
     def gains_at(self, t_loop_s: float) -> tuple[tuple[float, float, float], tuple[float, float, float, float] | None]:
         """(level K1..K3, azimuth K1..K4 or None while it is off) at loop time ``t_loop_s``."""
+        if self._gains_last[0] == t_loop_s:   # a step asks twice, and the stored passes hold the loop time
+            return self._gains_last[1]
         level_sigma, azimuth_sigma = self.schedule.sigmas(t_loop_s)
         level = level_gains(level_sigma, self.gravity, self.radius_m)
         azimuth = azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
+        self._gains_last = (t_loop_s, (level, azimuth))
         return level, azimuth
 
     def commanded_rate(self, state: CompassState) -> np.ndarray:
@@ -285,9 +292,15 @@ class CompassLoops:
         return A
 
     def _process_noise(self, dt_s: float) -> np.ndarray:
-        Q = np.zeros((8, 8))
-        Q[VE, VE] = Q[VN, VN] = self.grade.acc_vrw_ms_rts**2 * dt_s
-        Q[PE, PE] = Q[PN, PN] = Q[PU, PU] = self.grade.gyro_arw_rad_rts**2 * dt_s
+        """Q (8, 8) of one step of ``dt_s``; cached (every step of a run has the same few), never written to."""
+        key = (dt_s, self.grade)   # the pipeline may swap the grade for the louder one the data show
+        Q = self._Q_cache.get(key)
+        if Q is None:
+            if len(self._Q_cache) > 8:
+                self._Q_cache.clear()
+            Q = self._Q_cache[key] = np.zeros((8, 8))
+            Q[VE, VE] = Q[VN, VN] = self.grade.acc_vrw_ms_rts**2 * dt_s
+            Q[PE, PE] = Q[PN, PN] = Q[PU, PU] = self.grade.gyro_arw_rad_rts**2 * dt_s
         return Q
 
     def sigma(self, state: CompassState) -> AttitudeSigma:

@@ -108,12 +108,14 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def dcm_from_quat(q: np.ndarray) -> np.ndarray:
     """Direction cosine matrix of a unit quaternion: C = (w² - u·u) I + 2 u uᵀ + 2 w [u×]."""
-    w, x, y, z = np.moveaxis(np.asarray(q, dtype=float), -1, 0)
-    return np.stack((
-        np.stack((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)), -1),
-        np.stack((2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)), -1),
-        np.stack((2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)), -1),
-    ), axis=-2)
+    q = np.asarray(q, dtype=float)
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz, xy, xz, yz, wx, wy, wz = x * x, y * y, z * z, x * y, x * z, y * z, w * x, w * y, w * z
+    C = np.empty((*q.shape[:-1], 3, 3))   # filled in place: numpy's per-call cost dominates a few quaternions
+    C[..., 0, 0], C[..., 0, 1], C[..., 0, 2] = 1 - 2 * (yy + zz), 2 * (xy - wz), 2 * (xz + wy)
+    C[..., 1, 0], C[..., 1, 1], C[..., 1, 2] = 2 * (xy + wz), 1 - 2 * (xx + zz), 2 * (yz - wx)
+    C[..., 2, 0], C[..., 2, 1], C[..., 2, 2] = 2 * (xz - wy), 2 * (yz + wx), 1 - 2 * (xx + yy)
+    return C
 
 
 def quat_from_dcm(C: np.ndarray) -> np.ndarray:

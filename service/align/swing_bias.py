@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import cross, dcm_from_quat, skew
+from .conventions import cross, dcm_from_quat
 from .earth import earth_turn_integrals
 
 N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
@@ -89,40 +89,51 @@ class SwingBias:
         Xtz = sum(X[:, r, :] * dalpha[:, r, None] for r in range(3))
         normal = _running_sum(self.normal, weight[:, None, None] * XtX)
         rhs = _running_sum(self.rhs, weight[:, None] * Xtz)
-        scale = 1.0 / np.sqrt(np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-300))
-        scaled = normal * scale[:, :, None] * scale[:, None, :] + RIDGE * np.eye(N_PARAMS)
-        params = scale * np.linalg.solve(scaled, (scale * rhs)[:, :, None])[:, :, 0]
-        self.normal, self.rhs, self.params = normal[-1], rhs[-1], params[-1]
+        self.normal, self.rhs = normal[-1], rhs[-1]
         self._last = (float(elapsed_s[-1]), basis[-1], alpha[-1].copy(), C[-1], M[-1])
-        D = M - _static_part(basis, _earth_axis(params, self._lat_sign))
-        nabla = params[:, None, 9:]   # written out, not a matmul: the same bits whatever M is
-        return alpha - (D[:, :, 0] * nabla[:, :, 0] + D[:, :, 1] * nabla[:, :, 1] + D[:, :, 2] * nabla[:, :, 2])
+        params = _solve(normal, rhs)
+        self.params = params[-1]
+        return alpha - _swing_term(M, basis, _earth_axis(params, self._lat_sign), params[:, 9:])
 
     def earth_axis_b0(self) -> np.ndarray | None:
         """The Earth axis in b0 axes, w = C_{n0}^{b0} u (unit), from the fit: c = w × b; None before a fit."""
         w = _earth_axis(self.params[None], self._lat_sign)[0]
-        return None if np.isnan(w).any() else w
+        return None if not w.any() else w
+
+
+def _solve(normal: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+    """The parameters (K, 12) of K normal systems (K, 12, 12), (K, 12), equilibrated (the unknowns' scales differ by
+    orders of magnitude) with a ridge that keeps the first, rank-deficient ones finite."""
+    scale = 1.0 / np.sqrt(np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-300))
+    scaled = normal * scale[:, :, None] * scale[:, None, :] + RIDGE * np.eye(N_PARAMS)
+    return scale * np.linalg.solve(scaled, (scale * rhs)[:, :, None])[:, :, 0]
 
 
 def _running_sum(start: np.ndarray, steps: np.ndarray) -> np.ndarray:
     """start + steps[0], start + steps[0] + steps[1], …: added one at a time, left to right."""
+    if len(steps) == 1:   # the live path's one observation: the same single addition, without cumsum's cost
+        return (start + steps[0])[None]
     return np.cumsum(np.concatenate((start[None], steps)), axis=0)[1:]
 
 
 def _earth_axis(params: np.ndarray, lat_sign: float) -> np.ndarray:
     """w (…, 3) from the fitted b, c of ``params`` (…, 12): c = w × b, |w| = 1, the sign of the latitude settling
-    its part along b. NaN where b = 0 (no fit yet)."""
+    its part along b. 0 where b = 0 (no fit yet)."""
     b, c = params[..., 0:3], params[..., 3:6]
     b2 = np.sum(b * b, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        along = lat_sign * np.sqrt(np.maximum(0.0, 1.0 - np.sum(c * c, axis=-1, keepdims=True) / b2))
-        w = cross(b, c) / b2 + along * b / np.sqrt(b2)
-        return w / np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
+    fitted = b2 > 0.0
+    b2 = np.where(fitted, b2, 1.0)
+    along = lat_sign * np.sqrt(np.maximum(0.0, 1.0 - np.sum(c * c, axis=-1, keepdims=True) / b2))
+    w = cross(b, c) / b2 + along * b / np.sqrt(b2)
+    norm = np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
+    return np.where(fitted, w / np.where(fitted, norm, 1.0), 0.0)
 
 
-def _static_part(basis: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """E_b0(t) = C_{n0}^{b0} E(t) C_{b0}^{n0} = P1 I + P2 [w×] + P3 w wᵀ (…, 3, 3), the part of M(t) a static base
-    has; zero where w is unknown (no fit yet: ∇̂ is 0 then as well)."""
-    w = np.nan_to_num(w)
-    return (basis[..., 0, None, None] * np.eye(3) + basis[..., 1, None, None] * skew(w)
-            + basis[..., 2, None, None] * (w[..., :, None] * w[..., None, :]))
+def _swing_term(M: np.ndarray, basis: np.ndarray, w: np.ndarray, nabla: np.ndarray) -> np.ndarray:
+    """D(t)∇̂ = M(t)∇̂ − E_b0(t)∇̂ (…, 3), with E_b0(t) = C_{n0}^{b0} E(t) C_{b0}^{n0} = P1 I + P2 [w×] + P3 w wᵀ the part
+    of M(t) a static base has (w = 0 before a fit: ∇̂ is 0 then as well). Written out
+    elementwise, not as matmuls: the same bits whatever the number of observations."""
+    n0, n1, n2 = nabla[:, 0, None], nabla[:, 1, None], nabla[:, 2, None]
+    along = w[:, 0, None] * n0 + w[:, 1, None] * n1 + w[:, 2, None] * n2
+    static = basis[:, 0, None] * nabla + basis[:, 1, None] * cross(w, nabla) + basis[:, 2, None] * (along * w)
+    return M[:, :, 0] * n0 + M[:, :, 1] * n1 + M[:, :, 2] * n2 - static
