@@ -7,8 +7,10 @@ transient of a swinging body is gone, the limit stays the limit, and a static ba
 from dataclasses import replace
 
 import numpy as np
+import pytest
 from sinsalign.service.align.conventions import DEG, UG_TO_MS2, skew
 from sinsalign.service.align.earth import C_n_n0_fixed, earth_turn_integrals
+from sinsalign.service.align.swing_bias import SwingBias
 from sinsalign.service.config import config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 from sinsalign.tools.evaluate import COARSE_ONLY, run_once, window_stats
@@ -64,3 +66,21 @@ def test_the_slow_heading_transient_of_a_swinging_bias_is_gone_and_the_limit_sta
     assert plain.heading_inwindow_std > 0.001 and plain.heading_mean > 0.002
     assert fitted.heading_inwindow_std < 2e-4 and abs(fitted.heading_mean) < 5e-4
     assert abs(fitted.level_east_mean) < 1e-4 and abs(fitted.level_north_mean) < 5e-4
+
+
+@pytest.mark.parametrize("scale", [0.0, 1e-300])
+def test_degenerate_data_leave_alpha_finite_and_unchanged_where_the_fit_says_nothing(scale: float) -> None:
+    """No specific force at all (a log of zeros), or next to none (1e-300 m/s): the Earth axis is undefined,
+    the fit takes nothing out of α, and nothing warns (a replay of such a log stopped in the eigen-solve)."""
+    import warnings
+    fit = SwingBias(0.55, 50 * UG_TO_MS2, 3.5e-5)
+    elapsed = 0.1 * np.arange(1, 31)
+    alpha = scale * np.ones((30, 3))
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (30, 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        corrected = np.concatenate([fit.correct(elapsed[k:k + 10], alpha[k:k + 10], q[k:k + 10])
+                                    for k in range(0, 30, 10)])
+    assert np.isfinite(corrected).all()
+    if scale == 0.0:
+        assert (corrected == 0.0).all() and fit.earth_axis_b0() is None

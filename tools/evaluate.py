@@ -364,7 +364,7 @@ def plot_heading(name: str, runs: Sequence[RunResult], path: str | Path,
         sel = (t >= lo) & (t <= hi)
         for e in err:
             ax.plot(t[sel], e[sel], color="tab:blue", lw=0.6, alpha=0.5)
-        ax.plot([], [], color="tab:blue", lw=0.6, label=f"OPREQ heading error, {len(runs)} seeds")
+        ax.plot([], [], color="tab:blue", lw=0.6, label=f"heading error, {len(runs)} seeds")
         ax.fill_between(t[sel], -2 * sigma[sel], 2 * sigma[sel], color="tab:orange", alpha=0.15,
                         label="±2σ reported (mean over seeds)")
         ax.axhspan(limits.min(), limits.max(), color="tab:red", alpha=0.3, label="physical limit (range over seeds)")

@@ -118,15 +118,14 @@ def _running_sum(start: np.ndarray, steps: np.ndarray) -> np.ndarray:
 
 def _earth_axis(params: np.ndarray, lat_sign: float) -> np.ndarray:
     """w (…, 3) from the fitted b, c of ``params`` (…, 12): c = w × b, |w| = 1, the sign of the latitude settling
-    its part along b. 0 where b = 0 (no fit yet)."""
+    its part along b. 0 where there is no fit (b = 0, or a fit of data that leave w undefined)."""
     b, c = params[..., 0:3], params[..., 3:6]
     b2 = np.sum(b * b, axis=-1, keepdims=True)
-    fitted = b2 > 0.0
-    b2 = np.where(fitted, b2, 1.0)
-    along = lat_sign * np.sqrt(np.maximum(0.0, 1.0 - np.sum(c * c, axis=-1, keepdims=True) / b2))
-    w = cross(b, c) / b2 + along * b / np.sqrt(b2)
-    norm = np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
-    return np.where(fitted, w / np.where(fitted, norm, 1.0), 0.0)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        along = lat_sign * np.sqrt(np.maximum(0.0, 1.0 - np.sum(c * c, axis=-1, keepdims=True) / b2))
+        w = cross(b, c) / b2 + along * b / np.sqrt(b2)
+        w = w / np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
+    return np.where(np.isfinite(w).all(axis=-1, keepdims=True), w, 0.0)
 
 
 def _swing_term(M: np.ndarray, basis: np.ndarray, w: np.ndarray, nabla: np.ndarray) -> np.ndarray:
