@@ -162,9 +162,11 @@ class AlignmentPipeline:
         if self.aid_width:
             return f"{self.aid_kind}-aided alignment"
         a = self.config.alignment
-        chosen = f" (auto: {'gyro walk' if self.solver_name == 'gls' else 'accelerometer noise'} dominates)"
-        return (f"coarse solver {self.solver_name}{chosen if a.solver == 'auto' else ''}, swing-bias fit "
-                f"{'on' if a.swing_bias else 'off'}, compass stage {'on' if self._with_fine else 'off'}")
+        solver = self.solver_name
+        if a.solver == "auto":
+            solver += f" (auto: {'gyro walk' if solver == 'gls' else 'accelerometer noise'} dominates)"
+        return (f"coarse solver {solver}, swing-bias fit {'on' if a.swing_bias else 'off'}, "
+                f"compass stage {'on' if self._with_fine else 'off'}")
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a = self.config.alignment

@@ -18,6 +18,21 @@ def test_prefix_product_equals_sequential_product():
         np.testing.assert_allclose(P[k], q, atol=1e-14)
 
 
+def test_the_plain_float_block_chain_is_quat_multiply_then_quat_normalize_to_the_bit():
+    """The chain of block starts repeats quat_multiply and quat_normalize in plain floats (numpy's per-call cost on
+    4 numbers); it must stay their exact copy, or a replay and the live path would part at the block boundaries."""
+    from sinsalign.service.align.conventions import quat_normalize
+    from sinsalign.service.align.strapdown import _chain_block_starts
+    rng = np.random.default_rng(7)
+    totals = quat_from_rotvec(0.3 * rng.standard_normal((200, 3)))
+    start = quat_normalize(rng.standard_normal(4))
+    chained = _chain_block_starts(start, totals)
+    expected = [start]
+    for total in totals[:-1]:
+        expected.append(quat_normalize(quat_multiply(expected[-1], total)))
+    assert np.array_equal(chained, np.array(expected))
+
+
 def test_perfect_strapdown_recovers_the_simulated_truth_over_600_s():
     """Exact increments: body integrator + Earth rotation reproduce C_b^n(t) to < 1e-6° for 600 s of swing."""
     scenario = get_scenario("seed000-swing")

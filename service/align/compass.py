@@ -42,14 +42,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .conventions import skew
+from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
 
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
-EYE3 = np.eye(3)
-EYE3.flags.writeable = False
 
 
 def level_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float]:

@@ -31,6 +31,9 @@ DRH_TO_RRS = DEG / 60.0
 """°/√h → rad/√s (angle random walk)."""
 UG_TO_MS2 = 9.80665e-6
 """µg → m/s² (standard gravity, the datasheet unit)."""
+EYE3 = np.eye(3)
+"""The 3×3 identity, read-only: made once, not in every call of a per-step function."""
+EYE3.flags.writeable = False
 
 
 def skew(v: np.ndarray) -> np.ndarray:

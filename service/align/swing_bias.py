@@ -30,11 +30,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import cross, dcm_from_quat
+from .conventions import EYE3, cross, dcm_from_quat
 from .earth import earth_turn_integrals
 
 N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
 RIDGE = 1e-12   # on the equilibrated normal matrix: keeps the first, rank-deficient solves finite
+_RIDGE_I = RIDGE * np.eye(N_PARAMS)
+_RIDGE_I.flags.writeable = False
+_STEP_ROWS = EYE3[None, :, None, :]   # broadcasts each basis increment ΔP_i onto its I block of the design rows
 
 
 class SwingBias:
@@ -81,7 +84,7 @@ class SwingBias:
         M = _running_sum(M_last, dM)
         # the rows of each increment's design matrix [ΔP1 I, ΔP2 I, ΔP3 I, ΔM] (M, 3, 12)
         step = np.diff(basis, axis=0, prepend=basis_last[None])
-        X = np.concatenate((step[:, None, :, None] * np.eye(3)[None, :, None, :], dM[:, :, None, :]),
+        X = np.concatenate((step[:, None, :, None] * _STEP_ROWS, dM[:, :, None, :]),
                            axis=2).reshape(-1, 3, N_PARAMS)
         dalpha = np.diff(alpha, axis=0, prepend=alpha_last[None])
         weight = 1.0 / np.maximum(self._vrw2 * dt, 1e-300)   # observations are strictly later than the last
@@ -105,7 +108,7 @@ def _solve(normal: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """The parameters (K, 12) of K normal systems (K, 12, 12), (K, 12), equilibrated (the unknowns' scales differ by
     orders of magnitude) with a ridge that keeps the first, rank-deficient ones finite."""
     scale = 1.0 / np.sqrt(np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-300))
-    scaled = normal * scale[:, :, None] * scale[:, None, :] + RIDGE * np.eye(N_PARAMS)
+    scaled = normal * scale[:, :, None] * scale[:, None, :] + _RIDGE_I
     return scale * np.linalg.solve(scaled, (scale * rhs)[:, :, None])[:, :, 0]
 
 
