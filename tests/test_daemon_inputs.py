@@ -143,7 +143,7 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
     odo = [e for e in expected if e[0] == "odo"]
     # the odometer epochs go to the configured odo track, the other kinds are counted as unused
     assert counters["odo_epochs"] == len(odo) == 17 and counters["aiding_unused"] == len(expected) - len(odo)
-    assert daemon.tracks["odo"].latest_time == pytest.approx(odo[-1][2], abs=1e-9)
+    assert daemon.ingest.tracks["odo"].latest_time == pytest.approx(odo[-1][2], abs=1e-9)
     assert all(counters.get(k, 0) == 0 for k in ("seq_gaps", "seq_repeats", "odo_repeats", "odo_out_of_order",
                                                   "odo_non_finite", "odo_gaps"))
     assert "unknown aiding kind code 7" in subscriber.status[-1]["last_error"]

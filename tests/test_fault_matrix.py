@@ -123,6 +123,39 @@ def test_serial_fault(tmp_path, fault):
     fault_free_rest(bench, counters, attitude, **expected)
 
 
+SATURATED = np.array([5.0, 0.0, 0.0])   # rad in one sample: beyond the wire's full scale
+PACED = 5
+"""Frames on either side of the saturated one written one at a time, each read alone, at a real IMU's pace."""
+
+
+def write_alone(bench: Bench, raw: bytes, written: int) -> None:
+    """One frame as its own write once the daemon has decoded the ``written`` frames before it: a read brings it
+    alone, as every frame at a real IMU's pace."""
+    decoder = bench.daemon.ingest.decoder
+    deadline = time.monotonic() + 5
+    while decoder.counters.frames < written and time.monotonic() < deadline:
+        time.sleep(0.001)
+    bench.write(raw)
+
+
+@pytest.mark.parametrize("read", ["with the next frame", "alone"])
+def test_a_saturated_frame_restarts_the_alignment_whatever_read_brings_it(tmp_path, read):
+    bench = Bench(tmp_path)
+    if read == "alone":
+        bench.play(0, K - PACED)
+        for k in range(K - PACED, K + PACED + 1):
+            write_alone(bench, frame(k, dtheta=SATURATED if k == K else None), k)
+        bench.play(K + PACED + 1, len(T))
+    else:
+        bench.play(0, K)
+        bench.write(frame(K, dtheta=SATURATED) + frame(K + 1))
+        bench.play(K + 2, len(T))
+    counters, attitude = bench.finish()
+    n_obs = {m["t"]: m["n_obs"] for m in bench.subscriber.attitude}
+    assert n_obs[FAULT_AT_S + 1] < n_obs[FAULT_AT_S] / 10    # a fresh pipeline, not the old one going on
+    fault_free_rest(bench, counters, attitude, saturated=1, restarts=1)
+
+
 def test_non_finite_values_over_zenoh_are_dropped_counted_and_bridged(tmp_path):
     bench = Bench(tmp_path, zenoh_imu=True)
     publisher = bench.subscriber.session.declare_publisher(bench.daemon.keys.imu,

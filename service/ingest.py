@@ -1,0 +1,217 @@
+"""The daemon's path from received data to attitude records, without its I/O: decoder → sample gate → pipeline.
+
+Serial bytes go through the frame decoder (IMU samples out, aiding epochs to their tracks), every
+decoded sample through the :class:`~.sample_gate.SampleGate`, and what it admits into the
+alignment pipeline (in an aided mode after the :class:`~.aiding.AidingWait`); a restart the gate
+asks for starts a fresh pipeline whose counts carry on. Every stage keeps its state between calls,
+so one byte stream gives the same records and counters in whatever pieces it is read.
+"""
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..protocol import messages
+from ..protocol.counters import Counters
+from ..protocol.results import ResultRecord
+from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
+from .aided_pipeline import build_pipeline
+from .aiding import AidingTrack, AidingWait
+from .align.conventions import DEG
+from .align.earth import Site
+from .config import Config
+from .pipeline import AlignmentPipeline
+from .sample_gate import Sample, SampleGate
+
+AIDING_INBOX_LIMIT = 10_000
+"""Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
+
+
+def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
+    """Counters ``before`` a restart plus the new pipeline's ``now``, key by key (a key in either)."""
+    return {**before, **{key: before.get(key, 0) + count for key, count in now.items()}}
+
+
+@dataclass(slots=True)
+class SampleCounters(Counters):
+    """Checks on decoded samples, whatever their input."""
+
+    samples_in: int = 0
+    samples_in_serial: int = 0      # of samples_in, decoded from serial IMU frames
+    samples_in_zenoh: int = 0       # of samples_in, from the Zenoh IMU topic
+    samples_used: int = 0
+    aiding_frames: int = 0          # valid serial aiding epochs (type 2) received
+    bad_aiding: int = 0             # type-2 payloads decode_aiding rejected (unknown kind, length, non-finite)
+    bad_messages: int = 0
+    aiding_unused: int = 0          # aiding epochs of a kind the configuration does not use
+    inbox_overflow: int = 0
+    records_published: int = 0
+    internal_errors: int = 0
+
+
+class Ingest:
+    """Decoder, sample gate, aiding tracks and pipeline of one daemon, fed by :meth:`feed_bytes` (serial bytes) or
+    :meth:`feed_samples` (samples decoded from any input); ``report`` gets every event for the operator (once each),
+    ``record_rows`` every admitted row (N, 7: t in s, Δθ in rad, Δv in m/s) before the pipeline takes it."""
+
+    def __init__(self, config: Config, report: Callable[[str], None],
+                 record_rows: Callable[[np.ndarray], None] | None = None) -> None:
+        self.config = config
+        s = config.site
+        self.site = Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m)
+        self.aid_kinds = config.aiding.inputs
+        self.pipeline = self._new_pipeline()
+        ad = config.aiding
+        self.tracks = {kind: AidingTrack.configured(kind, ad) for kind in self.aid_kinds}
+        # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
+        self._wait = (AidingWait(self.tracks[self.pipeline.aid_kind], ad.max_wait_s) if self.pipeline.aid_width
+                      else None)
+        self.gate = SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples)
+        self.decoder = FrameDecoder()
+        self.counters = SampleCounters()
+        # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival order, not yet
+        # in its track; :meth:`feed_samples` takes them. At most AIDING_INBOX_LIMIT are held (the rest:
+        # `inbox_overflow`).
+        self.aiding_inbox: list[tuple[str, messages.AidingSample]] = []
+        self.t_first: float | None = None   # the first sample's time (s): how long an aided mode has run without aid
+        self.t_last: float | None = None    # the newest admitted sample's time (s)
+        self._report = report
+        self._record_rows = record_rows
+        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None,
+                                                 "aiding": None}
+        self._disturbances_before = 0
+        self._aiding_before: dict[str, int] = {}   # the aiding counters of the pipelines before restarts
+        self._pipeline_lock = threading.Lock()   # the status (a Zenoh query's thread too) sees a restart whole
+
+    def _new_pipeline(self) -> AlignmentPipeline:
+        return build_pipeline(self.config, self.site, self.config.imu.rate_hz, aids=self.aid_kinds, live=True)
+
+    def _restart_pipeline(self) -> None:
+        """A fresh pipeline after an outage: the old one's counts carry on in the status, and an aid that had begun
+        stays begun (an observation without it is a dropout, not a wait)."""
+        pipeline = self._new_pipeline()
+        pipeline.carry_aid_start(self.pipeline)
+        with self._pipeline_lock:
+            self._disturbances_before += self.pipeline.disturbances
+            self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
+            self.pipeline = pipeline
+
+    # ---- inputs -------------------------------------------------------------------------
+    def decode_serial(self, data: bytes) -> list[Sample]:
+        """The IMU samples of the frames ``data`` completes (any piece of the serial stream); its aiding frames go
+        to :attr:`aiding_inbox`."""
+        out = []
+        for frame in self.decoder.feed(data):
+            if frame.msg_type == MSG_IMU:
+                m = decode_imu(frame)
+                out.append((m.t, m.dtheta, m.dv, m.status, m.saturated))
+            elif frame.msg_type == MSG_AIDING:
+                self._take_aiding(frame)
+        self.counters.samples_in_serial += len(out)
+        return out
+
+    def _take_aiding(self, frame: Frame) -> None:
+        try:
+            epoch = decode_aiding(frame)
+        except messages.MessageError as exc:
+            self.counters.bad_aiding += 1
+            self._report(f"serial aiding frame dropped: {exc}")
+            return
+        self.counters.aiding_frames += 1
+        if len(self.aiding_inbox) >= AIDING_INBOX_LIMIT:
+            self.counters.inbox_overflow += 1
+            return
+        self.aiding_inbox.append((epoch.kind, epoch))
+
+    def _take_aiding_epochs(self, epochs: Iterable[tuple[str, messages.AidingSample]]) -> None:
+        """The serial aiding epochs held, then ``epochs`` (another input's), each into its kind's track; others
+        counted."""
+        held, self.aiding_inbox = self.aiding_inbox, []
+        for kind, epoch in (*held, *epochs):
+            if kind in self.tracks:
+                self.tracks[kind].push(np.array([messages.aiding_row(epoch)]))
+            else:
+                self.counters.aiding_unused += 1
+
+    # ---- alignment ----------------------------------------------------------------------
+    def feed_bytes(self, data: bytes) -> list[ResultRecord]:
+        """Serial bytes as a read gave them (any piece of the stream) → the records they complete."""
+        return self.feed_samples(self.decode_serial(data))
+
+    def feed_samples(self, samples: Sequence[Sample],
+                     epochs: Iterable[tuple[str, messages.AidingSample]] = ()) -> list[ResultRecord]:
+        """Decoded samples of one pass, in arrival order, and the aiding ``epochs`` that came with them from other
+        than the serial port (after the serial ones, into their tracks) → the records they complete. Without samples,
+        aiding that came after the last ones lets those waiting for it go."""
+        self._take_aiding_epochs(epochs)
+        if not samples:
+            return self._feed(None) if self._wait is not None and self._wait.held else []
+        records: list[ResultRecord] = []
+        self.counters.samples_in += len(samples)
+        for segment in self.gate.admit(samples):
+            if segment.restart:
+                self._report(segment.reason)
+                records += self._feed(None, everything=True)   # what waited for aiding, to the old pipeline
+                self._restart_pipeline()
+            t = segment.rows[:, 0]
+            self.counters.samples_used += len(t)
+            self.t_first = float(t[0]) if self.t_first is None else self.t_first
+            self.t_last = float(t[-1])
+            if self._record_rows is not None:
+                self._record_rows(segment.rows)
+            records += self._feed(segment.rows)
+        for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance),
+                             ("alignment", self.pipeline.last_notice), ("aiding", self.aid_stopped_text())):
+            if text and text != self._reported[source]:   # report each new event once
+                self._reported[source] = text
+                self._report(text)
+        return records
+
+    def _feed(self, rows: np.ndarray | None, everything: bool = False) -> list[ResultRecord]:
+        """Samples (N, 7) into the pipeline; in the aided mode they wait for their aiding first."""
+        if self._wait is None:
+            return [] if rows is None else self.pipeline.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+        if rows is not None:
+            self._wait.push(rows)
+        ready, aid = self._wait.release(everything)
+        if len(ready) == 0:
+            return []
+        return self.pipeline.process(ready[:, 0], ready[:, 1:4], ready[:, 4:7], aid)
+
+    # ---- state --------------------------------------------------------------------------
+    def all_counters(self) -> dict[str, int]:
+        """Decoder, sample, gate, pipeline (summed over restarts) and aiding track counters, by status name."""
+        with self._pipeline_lock:
+            pipeline_counts = {"disturbances": self._disturbances_before + self.pipeline.disturbances,
+                               **summed(self._aiding_before, self.pipeline.aiding_counters())}
+        counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
+                    **pipeline_counts}
+        for kind, track in self.tracks.items():
+            counters |= track.counters.as_dict(f"{kind}_")
+        return counters
+
+    def aid_wait_text(self) -> str | None:
+        """What an aided mode without a usable aiding value yet waits for, once IMU data have come."""
+        if self.t_last is None:
+            return None
+        kind = self.pipeline.aid_kind
+        track = self.tracks[kind]
+        if track.latest_time is None:
+            return (f"no {kind} epoch yet after {self.t_last - self.t_first:.1f} s of IMU data: the aided alignment "
+                    f"starts with the first (check the receiver, --aid {kind}, its topic or serial frames)")
+        return (f"{kind} epochs arrive ({track.counters.epochs}, the newest at t = {track.latest_time:.2f} s) but "
+                f"none covers the IMU's time yet (t = {self.t_last:.2f} s): a clock offset or aiding.{kind}_latency_s?")
+
+    def aid_stopped_text(self) -> str | None:
+        """What an aided mode misses while its stream, once begun, has been silent for longer than the wait."""
+        if self._wait is None or self.t_last is None or self.pipeline.awaiting_aid:
+            return None
+        kind = self.pipeline.aid_kind
+        latest = self.tracks[kind].latest_time
+        if latest is None or self.t_last - latest <= self._wait.wait_s:
+            return None
+        return (f"{kind} epochs stopped after t = {latest:.2f} s: the alignment goes on without them (check the "
+                f"receiver, its topic or serial frames)")
