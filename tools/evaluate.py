@@ -82,7 +82,7 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
     feed, aid = None, scenario_aiding(scenario, seed)
     if aid is None:
-        pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=live,
+        pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.stated_datasheet(), live=live,
                                      initial_q_b_n=initial)
     else:
         kind = aid.kind

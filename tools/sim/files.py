@@ -1,8 +1,8 @@
 """Write a simulated run as the pinned IMU log plus a truth log.
 
-The IMU log's comments carry the site, the rate, the datasheet grade and the actual simulated
-biases (``sim_gyro_bias_deg_h``, ``sim_acc_bias_ug``, body axes), so any tool can compute the
-physical limit of that run. The truth log has ``t,heading_deg,pitch_deg,roll_deg,qw,qx,qy,qz``.
+The IMU log's comments carry the site, the rate, the datasheet grade (unless the scenario states none)
+and the actual simulated biases (``sim_gyro_bias_deg_h``, ``sim_acc_bias_ug``, body axes), so any tool
+can compute the physical limit of that run. The truth log has ``t,heading_deg,pitch_deg,roll_deg,qw,qx,qy,qz``.
 """
 from __future__ import annotations
 
@@ -36,7 +36,7 @@ def log_keys(scenario: Scenario, seed: int) -> dict[str, object]:
     return {
         "lat_deg": f"{scenario.site.lat / DEG:.12g}", "lon_deg": f"{scenario.site.lon / DEG:.12g}",
         "height_m": f"{scenario.site.height_m:.12g}", "rate_hz": f"{scenario.rate_hz:.12g}",
-        **{key: f"{value:.12g}" for key, value in scenario.grade.datasheet().items()},
+        **{key: f"{value:.12g}" for key, value in (scenario.stated_datasheet() or {}).items()},
         "sim_gyro_bias_deg_h": _vector(e.gyro_bias_rad_s, DH_TO_RS),
         "sim_acc_bias_ug": _vector(e.acc_bias_ms2, UG_TO_MS2),
         "scenario": scenario.name, "seed": seed, "source": "sinsalign sim",

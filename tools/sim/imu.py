@@ -22,9 +22,10 @@ ERROR_SOURCES: dict[str, tuple[str, tuple[str, ...]]] = {
     "systematic": ("biases, scale factors, axis misalignments",
                    ("gyro_bias_rad_s", "acc_bias_ms2", "gyro_scale", "acc_scale", "gyro_misalignment",
                     "acc_misalignment")),
-    "acc-noise": ("accelerometer noise", ("acc_noise_ms2", "acc_vrw_ms_rts")),
-    "gyro-noise": ("gyro noise", ("gyro_noise_rad_s", "gyro_arw_rad_rts"))}
-"""The IMU's error sources for an error budget: name → (label, the :class:`ImuErrors` fields it holds)."""
+    "acc-noise": ("accelerometer noise", ("acc_noise_ms2", "acc_vrw_ms_rts", "acc_quantum_mps")),
+    "gyro-noise": ("gyro noise", ("gyro_noise_rad_s", "gyro_arw_rad_rts", "gyro_quantum_rad"))}
+"""The IMU's error sources for an error budget: name → (label, the :class:`ImuErrors` fields it holds); the
+quantisation of the increments counts with each sensor's noise."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,6 +38,8 @@ class ImuErrors:
     acc_noise_ms2, acc_vrw_ms_rts : the accelerometer's equivalents (m/s², m/s/√s).
     gyro_scale, acc_scale : (3,) scale-factor errors (dimensionless, 1e-6 = 1 ppm).
     gyro_misalignment, acc_misalignment : (3, 3) small-angle axis misalignment (rad), zero diagonal.
+    gyro_quantum_rad, acc_quantum_mps : one count of the output increments (rad, m/s), 0: not quantised
+        (see :class:`Accumulator`).
     """
 
     gyro_bias_rad_s: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -49,6 +52,8 @@ class ImuErrors:
     acc_scale: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_misalignment: tuple[tuple[float, ...], ...] = ((0.0,) * 3,) * 3
     acc_misalignment: tuple[tuple[float, ...], ...] = ((0.0,) * 3,) * 3
+    gyro_quantum_rad: float = 0.0
+    acc_quantum_mps: float = 0.0
 
     def only(self, source: str) -> ImuErrors:
         """These errors with one source of :data:`ERROR_SOURCES` kept and the others zero. The simulator draws
@@ -74,6 +79,25 @@ class ImuChunk:
     C_b_n_true: np.ndarray   # (N, 3, 3) true attitude at t
 
 
+class Accumulator:
+    """A sensor's output counter: it integrates its input and emits whole counts of ``quantum`` (rad or m/s),
+    carrying the remainder to the next sample, also from one chunk to the next. The integrated output differs
+    from the integrated input by at most half a count (counts are rounded)."""
+
+    def __init__(self, quantum: float) -> None:
+        self.quantum = quantum
+        self._sum = np.zeros(3)      # the input integrated since the start
+        self._counts = np.zeros(3)   # the counts emitted since the start (the remainder: sum − counts · quantum)
+
+    def quantise(self, increments: np.ndarray) -> np.ndarray:
+        """The output increments (N, 3), whole counts times the quantum, of the next input increments (N, 3)."""
+        sums = np.cumsum(np.vstack((self._sum, increments)), axis=0)[1:]   # the same sums whatever the chunks
+        counts = np.rint(sums / self.quantum)
+        output = (np.diff(counts, axis=0, prepend=self._counts[None, :]) + 0.0) * self.quantum   # + 0.0: no −0
+        self._sum, self._counts = sums[-1], counts[-1]
+        return output
+
+
 def true_increments(motion: AngularMotion | VehicleMotion, site: Site, t_start: np.ndarray,
                     dt_s: float) -> tuple[np.ndarray, np.ndarray]:
     """Error-free Δθ (N, 3) rad and Δv (N, 3) m/s over [t_start, t_start + dt_s]."""
@@ -88,7 +112,8 @@ def simulate(motion: AngularMotion, site: Site, errors: ImuErrors, rate_hz: floa
              seed: int, chunk_samples: int = 20000) -> Iterator[ImuChunk]:
     """Yield the IMU samples of ``duration_s`` seconds in chunks (bounded memory for long runs).
 
-    Sample k (k = 1 … N) covers ((k-1)/rate, k/rate]; the noise stream depends on the seed only.
+    Sample k (k = 1 … N) covers ((k-1)/rate, k/rate]; the noise stream depends on the seed only. With a
+    quantum set, the increments (the true ones with every error) leave the sensor as whole counts.
     """
     dt = 1.0 / rate_hz
     n_total = round(duration_s * rate_hz)
@@ -98,6 +123,8 @@ def simulate(motion: AngularMotion, site: Site, errors: ImuErrors, rate_hz: floa
     acc_matrix = np.eye(3) + np.diag(errors.acc_scale) + np.asarray(errors.acc_misalignment)
     gyro_bias_step = np.asarray(errors.gyro_bias_rad_s) * dt
     acc_bias_step = np.asarray(errors.acc_bias_ms2) * dt
+    gyro_counter = Accumulator(errors.gyro_quantum_rad) if errors.gyro_quantum_rad else None
+    acc_counter = Accumulator(errors.acc_quantum_mps) if errors.acc_quantum_mps else None
     for first in range(0, n_total, chunk_samples):
         k = np.arange(first, min(first + chunk_samples, n_total), dtype=float)
         t_start = k * dt
@@ -105,5 +132,9 @@ def simulate(motion: AngularMotion, site: Site, errors: ImuErrors, rate_hz: floa
         n = len(k)
         dtheta = dtheta @ gyro_matrix.T + gyro_bias_step + gyro_std * rng.standard_normal((n, 3))
         dv = dv @ acc_matrix.T + acc_bias_step + acc_std * rng.standard_normal((n, 3))
+        if gyro_counter is not None:
+            dtheta = gyro_counter.quantise(dtheta)
+        if acc_counter is not None:
+            dv = acc_counter.quantise(dv)
         t_end = (k + 1.0) * dt
         yield ImuChunk(t_end, dtheta, dv, motion.attitude(t_end))

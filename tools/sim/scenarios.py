@@ -1,10 +1,12 @@
 """Named simulation scenarios: the set-ups of the seed papers and a few bench classics.
 
 Each scenario fixes the site, the motion, the sensor errors (actual values) and the datasheet
-grade that the IMU log states; only the seed changes between Monte Carlo runs.
+grade that the IMU log states (if it states one); only the seed changes between Monte Carlo runs
+(with it the bias signs and the parked car's motion, where the scenario draws them).
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -14,6 +16,7 @@ from sinsalign.service.align.sensor_model import SensorGrade
 
 from .imu import ImuErrors
 from .motion import AngleProfile, AngularMotion, Sinusoid
+from .parked import DrivenMotion, ParkedMotion, Signal, SmoothStep, parked_motion
 from .vehicle import MountedMotion, VehicleMotion
 
 
@@ -56,9 +59,10 @@ class Scenario:
     name: str
     description: str
     site: Site
-    motion: AngularMotion | VehicleMotion
+    motion: AngularMotion | VehicleMotion | ParkedMotion | DrivenMotion
     errors: ImuErrors
     grade: SensorGrade
+    """The datasheet grade the IMU log states (which may differ from the actual errors)."""
     rate_hz: float
     duration_s: float
     eval_windows_s: tuple[tuple[float, float], ...]
@@ -67,16 +71,28 @@ class Scenario:
     """Each seed draws the sign of every axis's bias (a population of IMUs with biases of the stated size)."""
     gnss: GnssSpec | None = None
     master: MasterSpec | None = None
+    motion_for_seed: Callable[[int], ParkedMotion] | None = None
+    """Draws each seed's motion (its own heading and events; a module-level function, so the scenario pickles);
+    None: ``motion`` for every seed."""
+    states_datasheet: bool = True
+    """The IMU log states ``grade`` as its datasheet; False: the log states none (the configured one serves)."""
 
     def for_seed(self, seed: int) -> Scenario:
-        """The scenario as seed ``seed`` runs it (its own bias signs, if drawn)."""
-        if not self.random_bias_signs:
-            return self
+        """The scenario as seed ``seed`` runs it (its own motion and bias signs, if drawn)."""
+        scenario = self
+        if self.motion_for_seed is not None:
+            scenario = replace(scenario, motion=self.motion_for_seed(seed), motion_for_seed=None)
+        if not scenario.random_bias_signs:
+            return scenario
         signs = np.random.default_rng([seed, 5]).choice([-1.0, 1.0], size=(2, 3))
-        e = self.errors
-        return replace(self, random_bias_signs=False, errors=replace(
+        e = scenario.errors
+        return replace(scenario, random_bias_signs=False, errors=replace(
             e, gyro_bias_rad_s=tuple(float(v) for v in signs[0] * e.gyro_bias_rad_s),
             acc_bias_ms2=tuple(float(v) for v in signs[1] * e.acc_bias_ms2)))
+
+    def stated_datasheet(self) -> dict[str, float] | None:
+        """The datasheet keys the IMU log states (°/h, °/√h, µg, µg/√Hz), or None if it states none."""
+        return self.grade.datasheet() if self.states_datasheet else None
 
     def with_aid_rate(self, rate_hz: float) -> Scenario:
         """The scenario with its aiding sensor (GNSS, master or odometer) at ``rate_hz`` instead of its own."""
@@ -243,11 +259,70 @@ SCENARIOS["seed002"] = _scenario(
     100.0, 60.0, ((10.0, 10.0), (60.0, 60.0)), random_bias_signs=True, master=MasterSpec())
 
 
+PARKED_SITE = Site(34.0 * DEG, 118.0 * DEG)
+ARCSEC = DEG / 3600.0
+PARKED_ERRORS = ImuErrors(gyro_bias_rad_s=(0.01 * DH_TO_RS, 0.007 * DH_TO_RS, 0.005 * DH_TO_RS),
+                          gyro_arw_rad_rts=0.001 * DRH_TO_RRS,
+                          acc_bias_ms2=(50.0 * UG_TO_MS2, 30.0 * UG_TO_MS2, 20.0 * UG_TO_MS2),
+                          acc_vrw_ms_rts=5.0 * UG_TO_MS2, gyro_quantum_rad=0.93 * ARCSEC,
+                          acc_quantum_mps=500.0 * UG_TO_MS2)
+"""A navigation-grade ring-laser-gyro IMU within the default datasheet (0.01°/h, 0.001°/√h, 50 µg, 5 µg/√Hz):
+biases per axis (x, y, z), signs drawn per seed; counts of 0.93″ and 500 µg·s."""
+PARKED_DESCRIPTION = (
+    "parked car: L=34°, 100 Hz, 1800 s; per seed heading 0–360°, pitch/roll ±2°, engine at 20–40 Hz "
+    "(1e-4–5e-4°, 0.02–0.1 m/s²), rocking 0.002–0.01° at 1–3 Hz (slowly modulated), knocks 0.01–0.3° ringing at "
+    "1.5–3 Hz (3 per 10 min), people in/out (2 per 30 min: tilt 0.1–0.5°, sink 1–3 cm, bounce); RLG gyro "
+    "0.01/0.007/0.005°/h bias + 0.001°/√h, acc 50/30/20 µg + 5 µg/√Hz (bias signs drawn per seed and axis), "
+    "counts of 0.93″ and 500 µg·s")
+
+
+def _parked() -> Scenario:
+    scenario = _scenario("parked", PARKED_DESCRIPTION + "; the log states the matching datasheet", PARKED_SITE,
+                         parked_motion(0), PARKED_ERRORS, 100.0, 1800.0, ((300.0, 600.0), (1500.0, 1800.0)),
+                         random_bias_signs=True)
+    return replace(scenario, motion_for_seed=parked_motion)
+
+
+TACTICAL_GRADE = SensorGrade.from_datasheet(1.0, 0.05, 300.0, 50.0)
+"""A tactical-grade datasheet (1°/h, 0.05°/√h, 300 µg, 50 µg/√Hz): far louder than the parked RLG."""
+SCENARIOS["parked"] = _parked()
+SCENARIOS["parked-nodatasheet"] = replace(
+    SCENARIOS["parked"], name="parked-nodatasheet", states_datasheet=False,
+    description=PARKED_DESCRIPTION + "; the log states no datasheet (the configured one serves)")
+SCENARIOS["parked-tactical"] = replace(
+    SCENARIOS["parked"], name="parked-tactical", grade=TACTICAL_GRADE,
+    description=PARKED_DESCRIPTION + "; the log states a tactical datasheet (1°/h, 0.05°/√h, 300 µg, 50 µg/√Hz) "
+    "that overstates the sensor")
+
+
+def _swing_driven(name: str, drive: str, speed: Signal, duration_s: float,
+                  windows: tuple[tuple[float, float], ...]) -> Scenario:
+    """Seed 000's swing (its site, swing and IMU) driven north at ``speed`` (m/s), ``duration_s`` long."""
+    base = SCENARIOS["seed000-swing"]
+    return replace(base, name=name, motion=DrivenMotion(base.motion, speed), duration_s=duration_s,
+                   eval_windows_s=windows,
+                   description=f"seed 000 §5.2 ship swing (L=32°, 200 Hz, pitch/roll/yaw 8°/10°/6° at "
+                               f"0.15/0.125/0.2 Hz, seed000-swing's IMU); {drive}")
+
+
+SCENARIOS["swing-drive-away"] = _swing_driven(
+    "swing-drive-away", "from 60 s the base is driven north, reaching 30 m/s at 90 s (raised-cosine acceleration, "
+    "peak 2 m/s²), then on at 30 m/s to 200 s", Signal(terms=(SmoothStep(60.0, 30.0, 30.0),)), 200.0,
+    ((1.0, 60.0), (101.0, 200.0)))
+SCENARIOS["swing-drive-stop"] = _swing_driven(
+    "swing-drive-stop", "the base is driven 50 m north over 60–80 s (raised-cosine acceleration and braking, "
+    "peak 5 m/s and 1 m/s²), then parked again to 300 s",
+    Signal(terms=(SmoothStep(60.0, 10.0, 5.0), SmoothStep(70.0, 10.0, -5.0))), 300.0,
+    ((1.0, 60.0), (201.0, 300.0)))
+
+
 def daemon_sections(scenario: Scenario) -> dict[str, dict]:
-    """The daemon's [site] (degrees, metres), [imu] (Hz) and [sensor] (datasheet) tables for ``scenario``."""
+    """The daemon's [site] (degrees, metres), [imu] (Hz) and [sensor] (datasheet, if the log states one) tables
+    for ``scenario``."""
+    datasheet = scenario.stated_datasheet()
     return {"site": {"lat_deg": scenario.site.lat / DEG, "lon_deg": scenario.site.lon / DEG,
                      "height_m": scenario.site.height_m},
-            "imu": {"rate_hz": scenario.rate_hz}, "sensor": scenario.grade.datasheet()}
+            "imu": {"rate_hz": scenario.rate_hz}, **({"sensor": datasheet} if datasheet is not None else {})}
 
 
 def get_scenario(name: str) -> Scenario:
