@@ -134,12 +134,18 @@ ZENOH_MODES = ("", "peer", "client", "router")
 
 @dataclass(frozen=True, slots=True)
 class DisturbanceConfig:
-    """Detection of a base that moves although the alignment assumes it fixed in position."""
+    """A base that moves although the alignment assumes it fixed in position (service/align/disturbance.py).
+
+    Every ``check_interval_s`` the horizontal velocity gained over the last ``window_s`` is checked; above
+    ``velocity_threshold_mps`` the base is moving: ``disturbed``, never converged, until it has been at rest for
+    ``hold_s``. Then ``action = "restart"`` starts the alignment over if the base really went somewhere (and the
+    restarted alignment stays disturbed for ``hold_s`` more); ``"report"`` only flags.
+    """
 
     enabled: bool = True
-    velocity_threshold_mps: float = 0.5
-    tilt_jump_deg: float = 0.1
-    check_interval_s: float = 1.0
+    velocity_threshold_mps: float = 0.1
+    window_s: float = 2.0
+    check_interval_s: float = 0.5
     hold_s: float = 10.0
     action: str = "restart"
 
@@ -276,7 +282,7 @@ def _check(config: Config) -> Config:
         ("serial.reconnect_max_s", config.serial.reconnect_max_s > 0.0, "must be > 0"),
         ("daemon.status_period_s", config.daemon.status_period_s > 0.0, "must be > 0"),
         ("disturbance.velocity_threshold_mps", config.disturbance.velocity_threshold_mps > 0.0, "must be > 0"),
-        ("disturbance.tilt_jump_deg", config.disturbance.tilt_jump_deg > 0.0, "must be > 0"),
+        ("disturbance.window_s", config.disturbance.window_s > 0.0, "must be > 0"),
         ("disturbance.check_interval_s", config.disturbance.check_interval_s > 0.0, "must be > 0"),
         ("disturbance.hold_s", config.disturbance.hold_s >= 0.0, "must be ≥ 0"),
         ("aiding.odo_latency_s", 0.0 <= ad.odo_latency_s <= 10.0, "must be in [0, 10]"),

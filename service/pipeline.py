@@ -14,11 +14,11 @@ from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
 from .align.compass import GainSchedule
-from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, misalignment, quat_from_dcm
-from .align.disturbance import translation_residual_mps
+from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm
+from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
-from .align.noise_check import VERDICT_BLOCKS, NoiseMeter
+from .align.noise_check import VERDICT_STEPS, NoiseMeter
 from .align.observations import FixedSiteSource
 from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, auto_solver, bias_limit_rad
 from .align.solvers import CentredWahba, RecursiveK, make_solver
@@ -90,8 +90,8 @@ class AlignmentPipeline:
     checks_translation = True
     """Whether a base that translates is a disturbance (not for a base meant to move)."""
     checks_noise = True
-    """Whether the data's own noise is measured against the datasheet's and σ follows the louder (a fixed base: a
-    moving vehicle's vibration and manoeuvres are no sensor noise, and its σ comes from fits and filters)."""
+    """Whether σ takes the noise the fixed-base residual shows (service/align/noise_check.py; a moving vehicle's
+    σ comes from its fits and filters)."""
 
     def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
                  live: bool = False, initial_q_b_n: np.ndarray | None = None) -> None:
@@ -107,9 +107,8 @@ class AlignmentPipeline:
         # the coarse solver that runs: alignment.solver, or the one "auto" picks for this datasheet
         self.solver_name = (auto_solver(self.grade, site.lat, site.gravity, a.converged_heading_sigma_deg)
                             if a.solver == "auto" else a.solver)
-        self.sigma_grade = self.grade   # the datasheet's, until the data show more noise (service/align/noise_check.py)
-        self.noise = NoiseMeter(self.sample_period_s) if self.checks_noise else None
-        self.noise_unchecked = self.noise is not None   # σ still waits for the meter's first verdict
+        self.sigma_grade = self.grade   # the datasheet's, until the data show their own noise (noise_check.py)
+        self.noise_unchecked = self.checks_noise   # σ still waits for the meter's first verdict
         self.block_samples = max(1, round(f.control_interval_s * rate_hz))
         self._live = live
         self._with_fine = f.enabled or initial_q_b_n is not None
@@ -117,8 +116,7 @@ class AlignmentPipeline:
         self.disturbances = 0
         self.last_disturbance: str | None = None
         self.last_notice: str | None = None   # why the alignment cannot go on as configured, for the operator
-        self._disturbed_until = -np.inf
-        self._reference_C_b0_n0: np.ndarray | None = None
+        self._disturbed_until = -np.inf   # a restarted alignment is disturbed until then
         self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
         self._pending = np.empty((self.block_samples, AID_EPOCH_COLUMN + (1 + self.aid_width if self.aid_width else 0)))
         self._n_pending = 0
@@ -134,8 +132,13 @@ class AlignmentPipeline:
         self._t_step = t_start
         self._step_epoch = -1.0   # the newest aiding epoch at the last control step
         self._restarted = t_start is not None
-        self._lagged_C_b0_n0: np.ndarray | None = None
-        self._next_check_s = self.config.disturbance.check_interval_s
+        d = self.config.disturbance
+        self.motion = (MotionMonitor(self.coarse.source, d.velocity_threshold_mps, d.window_s, d.check_interval_s,
+                                     d.hold_s) if d.enabled and self.checks_translation else None)
+        self._next_check_s = d.check_interval_s
+        # the meter's α history lives in these estimators' b0 axes (the figures found so far stay in sigma_grade)
+        self.noise = (NoiseMeter(self.config.alignment.obs_interval_s, self.site.lat, self.site.gravity)
+                      if self.checks_noise else None)
 
     def aiding_counters(self) -> dict[str, int]:
         """What the estimators made of the aiding (none without): coarse observations due before the aid's first
@@ -249,6 +252,7 @@ class AlignmentPipeline:
         elapsed, q_b_b0, alpha = self.coarse.integrate(t, samples[:, 1:4], samples[:, 4:7], M)
         aid, aid_epoch = self._aid(samples), self._aid_epoch(samples)
         due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, aid, aid_epoch)
+        observed_s, observed_alpha = self.coarse.observed
         counts = self._epoch_counts(t)
         epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
         self._epoch_count = int(counts[-1])
@@ -261,23 +265,29 @@ class AlignmentPipeline:
                     records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
-            folded = _fold_until(solver, due, dK, trace_R, folded, end)
+            measured, folded = folded, _fold_until(solver, due, dK, trace_R, folded, end)
+            if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
+                self._measure_noise(observed_s[measured:folded], observed_alpha[measured:folded])
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
                                None if aid is None else aid[end], None if aid_epoch is None else aid_epoch[end])
-            if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
-                self._measure_noise(samples[end + 1 - M:end + 1])
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
                     self._process_blocks(samples[end + 1:], records)
                 return
 
-    def _measure_noise(self, block: np.ndarray) -> None:
-        """Feed one block's increments to the noise meter; σ takes the data's noise where it is far louder than
-        the datasheet's, and the operator is told once."""
-        self.noise.feed(block[:, 1:7])
-        if self.noise.blocks % VERDICT_BLOCKS:
+    def _measure_noise(self, elapsed_s: np.ndarray, alpha: np.ndarray) -> None:
+        """Feed one block's observations (elapsed (M,) s, α (M, 3) m/s) to the noise meter; every
+        :data:`VERDICT_STEPS` observations σ takes the figures the data show (service/align/noise_check.py), and the
+        operator is told once of a datasheet far too quiet."""
+        verdict_due = False
+        for elapsed_k, alpha_k in zip(elapsed_s, alpha, strict=True):
+            self.noise.feed(float(elapsed_k), alpha_k)
+            verdict_due = verdict_due or self.noise.steps % VERDICT_STEPS == 0
+        if not verdict_due:
             return
+        if self.coarse.solver.n_obs:
+            self.noise.C_n0_b0 = dcm_from_quat(self.coarse.q_b_n0).T
         verdict = self.noise.verdict(self.grade)
         self.noise_unchecked = self.noise_unchecked and verdict is None
         if verdict is not None and verdict.grade != self.sigma_grade:
@@ -286,9 +296,11 @@ class AlignmentPipeline:
             self.last_notice = self.last_notice or verdict.notice
 
     def _apply_sigma_grade(self) -> None:
-        """The stages report σ with :attr:`sigma_grade` (their estimates keep the datasheet's weights and gains)."""
+        """The stages report σ with :attr:`sigma_grade` (their estimates keep the datasheet's weights and gains). The
+        loops take it until they start: their covariance then runs on with one grade, so live passes sliced over
+        many steps propagate it as offline passes run at once do."""
         self.coarse.sigma_grade = self.sigma_grade
-        if isinstance(self.fine, FineAlignment):
+        if isinstance(self.fine, FineAlignment) and not self.fine.active:
             self.fine.loops.grade = self.sigma_grade
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
@@ -308,55 +320,37 @@ class AlignmentPipeline:
         if fresh:
             self._step_epoch = aid_epoch
         self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
-        d = self.config.disturbance
-        if d.enabled and self.checks_translation and elapsed_s >= self._next_check_s:
-            self._next_check_s = elapsed_s + d.check_interval_s
-            self._check_translation(t_end, elapsed_s, q_b_b0, alpha)
+        if self.motion is not None and elapsed_s >= self._next_check_s:
+            self._next_check_s = elapsed_s + self.config.disturbance.check_interval_s
+            self._check_motion(t_end, elapsed_s, q_b_b0, alpha)
 
-    def _check_translation(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
-        """Flag a base that moves (service/align/disturbance.py) and restart or report per configuration.
-
-        Two signs: the velocity the base gained (the loops' velocity, or OPREQ's residual under an
-        estimate one check old), and, after a disturbance, a level that disagrees with the last
-        trusted attitude carried on by the gyros: a base that keeps accelerating looks tilted to a
-        fresh alignment (a constant acceleration is indistinguishable from gravity), never to the gyros.
-        """
+    def _check_motion(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
+        """Watch for a base that translates (:class:`MotionMonitor`) under the coarse estimate, which runs through
+        every stage: while it moves the records are ``disturbed`` with the trusted attitude carried on by the gyros;
+        once it is at rest again the alignment restarts if the data contradict it (``action = "restart"``)."""
+        if self.coarse.solver.n_obs == 0:
+            return
+        heading_deg, level_deg = self.coarse.sigma(elapsed_s)
+        found = self.motion.check(elapsed_s, alpha, q_b_b0, dcm_from_quat(self.coarse.q_b_n0), heading_deg * DEG,
+                                  level_deg * DEG)
+        if found is None:
+            return
         d = self.config.disturbance
-        C_b_b0 = dcm_from_quat(q_b_b0)
-        reasons = []
-        if self.fine is not None and self.fine.active:
-            current = self.fine.attitude(C_b_b0, 0.0)
-            speed = float(np.hypot(*self.fine.state.V))
-        elif self.coarse.solver.n_obs > 0:
-            C_b0_n0 = dcm_from_quat(self.coarse.q_b_n0)
-            current = self.coarse.source.C_n_n0(elapsed_s).T @ C_b0_n0 @ C_b_b0
-            lagged, self._lagged_C_b0_n0 = self._lagged_C_b0_n0, C_b0_n0
-            speed = 0.0 if lagged is None else translation_residual_mps(self.coarse.source, lagged, elapsed_s,
-                                                                        q_b_b0, alpha)
-        else:
+        if found.state == "moving":
+            if self.motion.episode.detected_s == elapsed_s:
+                self.disturbances += 1
+                self.last_disturbance = (f"base moving at t = {t_end:.2f} s: {found.speed_mps:.2f} m/s gained in "
+                                         f"{d.window_s:g} s (> {d.velocity_threshold_mps:g} m/s); the gyros carry "
+                                         "the last trusted attitude on until it is at rest again")
             return
-        if speed > d.velocity_threshold_mps:
-            reasons.append(f"velocity residual {speed:.2f} m/s > {d.velocity_threshold_mps:g} m/s")
-        reference = None
-        if self._reference_C_b0_n0 is not None:
-            reference = self.coarse.source.C_n_n0(elapsed_s).T @ self._reference_C_b0_n0 @ C_b_b0
-            tilt_deg = float(np.hypot(*misalignment(current, reference)[:2])) / DEG
-            if tilt_deg > d.tilt_jump_deg:
-                reasons.append(f"level {tilt_deg:.2f}° off the attitude the gyros carried on")
-            elif t_end >= self._disturbed_until:
-                self._reference_C_b0_n0 = None   # consistent again: the new alignment has earned trust
-        if not reasons:
-            return
-        self.disturbances += 1
-        self._disturbed_until = t_end + d.hold_s
-        self.last_disturbance = f"base moving at t = {t_end:.2f} s: {'; '.join(reasons)}" + (
-            ": alignment restarted" if d.action == "restart" else "")
-        trusted = reference if reference is not None else current
-        if d.action == "restart":
+        restart = found.restart and d.action == "restart"
+        self.last_disturbance = (f"base at rest again at t = {t_end:.2f} s after gaining up to {found.speed_mps:.2f} "
+                                 "m/s: " + ("alignment restarted" if restart else
+                                            "alignment kept (consistent with the data)" if not found.restart else
+                                            "alignment not restarted (disturbance.action = report)"))
+        if restart:
+            self._disturbed_until = t_end + d.hold_s
             self._start_estimators(t_end)
-            self._reference_C_b0_n0 = trusted   # at the restart b0 = b(t) and n0 = n(t)
-        elif self._reference_C_b0_n0 is None:
-            self._reference_C_b0_n0 = self.coarse.source.C_n_n0(elapsed_s) @ trusted @ C_b_b0.T
 
     def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
                     dt_s: float, aid: np.ndarray | None, fresh: bool) -> None:
@@ -402,8 +396,18 @@ class AlignmentPipeline:
 
     def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                 coarse: InertialCoarseAlignment) -> ResultRecord:
-        record = self._stage_record(t_epoch, t_sample, q_b_b0, coarse)
-        if t_sample < self._disturbed_until:
+        episode = None if self.motion is None else self.motion.episode
+        if episode is not None:
+            # a base that moves: the attitude trusted before the motion, carried on by the gyros
+            elapsed = t_sample - coarse.t0
+            C_b_n = coarse.source.C_n_n0(elapsed).T @ episode.C_b0_n0 @ dcm_from_quat(q_b_b0)
+            solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), episode.heading_sigma_rad / DEG,
+                                        episode.level_sigma_rad / DEG, coarse.solver.rho, coarse.solver.trace_P,
+                                        coarse.solver.n_obs)
+            record = result_record(solution, t_epoch, "disturbed", self.config.alignment.converged_heading_sigma_deg)
+        else:
+            record = self._stage_record(t_epoch, t_sample, q_b_b0, coarse)
+        if episode is not None or t_sample < self._disturbed_until:
             # nothing converged survives a disturbance until the restarted alignment earns it again
             return replace(record, phase="disturbed", converged=False)
         return record
@@ -415,9 +419,13 @@ class AlignmentPipeline:
             record = result_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
             # without a fine stage, a converged coarse solution is the end of the alignment
             return replace(record, phase="aligned") if self.fine is None and record.converged else record
-        C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
         sigma = self.fine.sigma
-        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
-                                    coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
-        aligned = self.fine.schedule_complete and sigma.heading_deg <= threshold
+        # the coarse stage runs on beside the loops: the output is whichever of the two claims the smaller heading σ,
+        # so the fine stage never makes the heading worse than the coarse stage alone would give
+        solution = coarse.solution_at(t_sample, q_b_b0)
+        if sigma.heading_deg < solution.heading_sigma_deg:
+            C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
+            solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
+                                        coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
+        aligned = self.fine.schedule_complete and solution.heading_sigma_deg <= threshold
         return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)

@@ -77,6 +77,9 @@ class InertialCoarseAlignment:
         self.unaided_observations = 0        # due without aid after it had started: a dropout
         self.aid_started = False
         self._aid_epoch = -1.0   # the aiding epoch of the last observation
+        self.observed = np.empty(0), np.empty((0, 3))
+        """The last :meth:`observe`'s observations: elapsed time (M,) s and α (M, 3) m/s as the solver takes it (b0
+        axes, the swing-bias term removed): what the fixed-base residual's noise is measured on."""
 
     def update(self, dtheta: np.ndarray, dv: np.ndarray, t: float) -> None:
         """One IMU sample: Δθ (3,) rad, Δv (3,) m/s in body axes, ending at time t (s)."""
@@ -132,6 +135,7 @@ class InertialCoarseAlignment:
         alpha_due = alpha[due]
         if self.swing_bias is not None:
             alpha_due = self.swing_bias.correct(elapsed_s[due], alpha_due, q_b_b0[due])
+        self.observed = elapsed_s[due], alpha_due
         b, r = self.source.vectors(elapsed_s[due], alpha_due, q_b_b0[due], None if aid is None else aid[due])
         return (due, *self.prepare_pairs(elapsed_s[due], b, r))
 

@@ -1,22 +1,129 @@
-"""Motion that breaks the fixed-base model (alignment-math.md §3; issue "robustness").
+"""Motion that breaks the fixed-base model: a base that translates (alignment-math.md §3).
 
 Inertial-frame alignment of a base fixed in position explains α(t) = C_{b0}^{n0} β(t) with a
-constant C_{b0}^{n0}: rotation of any kind (swing, turning on the spot) is carried by C_b^{b0}
-and never shows. A base that translates adds its velocity change to α and nothing to β. With an
-estimate of C_{b0}^{n0} taken a little earlier (so that the fit has not yet bent itself around
-the new motion), the horizontal part of C_{b0}^{n0} α − β is the velocity the base has gained:
-a few mm/s for a swinging or moored base, metres per second within seconds for a driven one.
+constant C_{b0}^{n0}: rotation of any kind (swing, a knock, turning on the spot) is carried by
+C_b^{b0} and never shows. A base that translates adds its velocity change to α and nothing to β,
+so under an estimate of C_{b0}^{n0} the horizontal part of C_{b0}^{n0} Δα − Δβ between two
+instants is the velocity the base gained between them: a few mm/s for a rocking car or a moored
+base, metres per second within seconds for a driven one.
+
+:class:`MotionMonitor` watches that velocity at every check:
+
+- **still**: the velocity gained over the last ``window_s``, under the estimate of ``window_s``
+  ago (so that the fit has not bent itself around the new motion), stays below the threshold;
+- **moving**: it passed the threshold. The estimate of the window's start is frozen as the
+  trusted attitude (the gyros carry it on), and the velocity gained since the window's start is
+  tracked under it, with its drift bound (the trusted tilt times g times the time, its heading
+  times the turn of the reference vector);
+- **stopped**: the base has been at rest for ``settle_s``: no velocity gained over a window, and
+  the velocity since the motion began back inside its drift bound. If the velocity ever left
+  twice the threshold plus that bound the base really went somewhere and the alignment starts
+  over; a jolt that came back within it is consistent with the alignment, which is kept.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numpy as np
 
 from .observations import ObservationSource
 
+DRIFT_SIGMAS = 3.0
+"""The drift bound of the tracked velocity, in standard deviations of the trusted attitude's error."""
 
-def translation_residual_mps(source: ObservationSource, C_b0_n0: np.ndarray, elapsed_s: float,
-                             q_b_b0: np.ndarray, alpha_b0: np.ndarray) -> float:
-    """|horizontal part of C_{b0}^{n0} α − β| (m/s) at ``elapsed_s`` after the start."""
-    _, beta = source.vectors(np.array([elapsed_s]), alpha_b0[None], q_b_b0[None])
-    residual = C_b0_n0 @ alpha_b0 - beta[0]
-    return float(np.hypot(residual[0], residual[1]))
+
+@dataclass(slots=True)
+class MotionEpisode:
+    """A base known to move: since ``start_s`` (elapsed time of the window's start before the detection)."""
+
+    start_s: float
+    alpha_start: np.ndarray       # α (3,) m/s, b0 axes, at start_s
+    beta_start: np.ndarray        # β (3,) m/s, n0 axes, at start_s
+    C_b0_n0: np.ndarray           # the trusted estimate (3, 3), frozen at the detection
+    heading_sigma_rad: float      # its 1-sigma errors
+    level_sigma_rad: float
+    detected_s: float
+    speed_mps: float = 0.0        # |velocity gained since start_s| at the last check
+    peak_mps: float = 0.0         # its largest value
+    still_since_s: float | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class MotionCheck:
+    """What one check found: ``state`` "moving" (detected now or still moving) or "stopped" (an episode ended),
+    the speed (m/s: gained over the window at a detection, since the motion began afterwards, the peak at the end),
+    and at the end whether the data contradict the alignment (``restart``)."""
+
+    state: str
+    speed_mps: float
+    restart: bool = False
+
+
+class MotionMonitor:
+    """Checks, every ``check_interval_s`` of alignment time, whether a base meant to stay in place translates.
+
+    source : the fixed site's observation source (its β and the navigation frame's turn).
+    threshold_mps : horizontal velocity gained over ``window_s`` that means "moving" (m/s).
+    """
+
+    def __init__(self, source: ObservationSource, threshold_mps: float, window_s: float, check_interval_s: float,
+                 settle_s: float) -> None:
+        self.source = source
+        self.threshold_mps = threshold_mps
+        self.settle_s = settle_s
+        self._n = max(1, round(window_s / check_interval_s))
+        self._elapsed = np.full(self._n + 1, np.nan)
+        self._alpha = np.zeros((self._n + 1, 3))
+        self._beta = np.zeros((self._n + 1, 3))
+        self._C = np.zeros((self._n + 1, 3, 3))
+        self._count = 0
+        self.episode: MotionEpisode | None = None
+
+    def _gained(self, C_b0_n0: np.ndarray, elapsed_s: float, alpha: np.ndarray, beta: np.ndarray,
+                alpha_from: np.ndarray, beta_from: np.ndarray) -> tuple[float, float]:
+        """(|horizontal velocity gained| m/s, |horizontal turn of β| m/s) from the ``_from`` instant to now, in the
+        navigation frame of now."""
+        C_n0_n = self.source.C_n_n0(elapsed_s).T
+        gained = C_n0_n @ (C_b0_n0 @ (alpha - alpha_from) - (beta - beta_from))
+        turn = C_n0_n @ (beta - beta_from)
+        return float(np.hypot(gained[0], gained[1])), float(np.hypot(turn[0], turn[1]))
+
+    def check(self, elapsed_s: float, alpha_b0: np.ndarray, q_b_b0: np.ndarray, C_b0_n0: np.ndarray,
+              heading_sigma_rad: float, level_sigma_rad: float) -> MotionCheck | None:
+        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) and C_b^{b0} (4,) there, the current estimate C_b0^n0 with
+        its 1-sigma errors (rad). None: the base stays still."""
+        _, beta = self.source.vectors(np.array([elapsed_s]), alpha_b0[None], q_b_b0[None])
+        beta = beta[0]
+        slot = self._count % (self._n + 1)
+        oldest = (self._count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
+        self._elapsed[slot], self._alpha[slot], self._beta[slot], self._C[slot] = elapsed_s, alpha_b0, beta, C_b0_n0
+        self._count += 1
+        if self._count <= self._n:
+            return None
+        episode = self.episode
+        if episode is None:
+            speed, _ = self._gained(self._C[oldest], elapsed_s, alpha_b0, beta, self._alpha[oldest],
+                                    self._beta[oldest])
+            if speed <= self.threshold_mps:
+                return None
+            self.episode = MotionEpisode(float(self._elapsed[oldest]), self._alpha[oldest].copy(),
+                                         self._beta[oldest].copy(), self._C[oldest].copy(), heading_sigma_rad,
+                                         level_sigma_rad, elapsed_s, speed, speed)
+            return MotionCheck("moving", speed)
+        window_speed, _ = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, self._alpha[oldest],
+                                       self._beta[oldest])
+        speed, turn = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, episode.alpha_start,
+                                   episode.beta_start)
+        episode.speed_mps, episode.peak_mps = speed, max(episode.peak_mps, speed)
+        drift = DRIFT_SIGMAS * (np.linalg.norm(alpha_b0 - episode.alpha_start) * episode.level_sigma_rad
+                                + turn * episode.heading_sigma_rad)
+        if window_speed >= 0.5 * self.threshold_mps or speed > self.threshold_mps + drift:
+            episode.still_since_s = None
+            return MotionCheck("moving", speed)
+        if episode.still_since_s is None:
+            episode.still_since_s = elapsed_s
+        if elapsed_s - episode.still_since_s < self.settle_s:
+            return MotionCheck("moving", speed)
+        self.episode = None
+        self._count = 0   # the window starts afresh: the next detection compares with data after the rest
+        return MotionCheck("stopped", episode.peak_mps, restart=episode.peak_mps > 2.0 * self.threshold_mps + drift)

@@ -1,110 +1,186 @@
-"""The white noise the IMU data show, against the datasheet's (fixed base).
+"""The noise the data show, from the residual of the fixed-base model itself (alignment-math.md §3).
 
-The reported σ of the fixed-base stages is a model of the datasheet's noise figures: a datasheet that
-claims far too little noise (a unit slip, a figure of another sensor) leaves σ far too small while
-the errors are the data's. The data measure their own noise: white noise of density n gives
-increments over a sample period dt with per-sample standard deviation n √dt, and the K-th
-difference of a white sequence has C(2K, K) times its variance, while a smooth motion's K-th
-difference shrinks as (ω dt)^K. At K = 4 a ship's swing or a turntable's sway at 200 Hz leaves
-under 1e-12 rad against 2e-9 rad of a navigation-grade gyro's noise (measured on the seed-000 swing:
-0.99 of the stated density for both sensors). Each control block gives one mean square per sensor;
-the estimate is the median over the last :data:`BLOCKS_HELD` blocks, so a short burst of motion (a
-turntable step, a knock) does not move it. Memory is O(1).
+The heading of inertial-frame alignment comes from α(t) = C_{n0}^{b0} β(t) over minutes, so its error is set by
+how the error of α behaves over seconds to minutes, not by what one increment carries. A sample-level meter reads
+engine vibration, an RLG's dither, quantisation and rocking as sensor noise and leaves σ 50-100× too large: all of
+those are bounded motion of α, which averages out of the heading as T⁻⁵, while white accelerometer noise (a random
+walk of α) averages out as T⁻³ and a gyro's angle random walk (an integrated random walk of α) as T⁻¹.
+
+Per lag τ the meter takes the mean of the residual α − Ĉ β over windows of τ and the third difference of those
+means, D_τ (horizontal part, per axis): a Hadamard variance of α. Its mean square tells the three apart by how it
+grows with the lag (the constants are the integrals of the stencil against each process, checked in the tests):
+
+    E[D_τ²] = (8/3) q τ + (2/3) g² N² τ³ + 20 S / τ
+
+with q the accelerometer's white-noise density squared (VRW², m²/s³), N the gyro's angle random walk (rad/√s) and
+S the density of a bounded disturbance of α seen as white noise (m²/s: a variance times its correlation time; a
+periodic one shorter than τ averages out of the window means as well). The stencil cancels the reference up to its
+cubic term, so Ĉ takes out only the rest (gΩ²τ³, 2e-4 m/s at 16 s) and a rough estimate is enough. The lags run
+from 1 s to 16 s; each lag's mean square is fitted with its statistical weight. σ takes the upper bound
+(:data:`SIGNIFICANCE` standard errors) of the white noise and of the bounded disturbance, whatever the datasheet
+says: too loud a datasheet gives way to the data, too quiet a one cannot make σ overconfident, and white noise far
+under a quantiser's floor is bounded by what the floor lets through. The gyro's walk shows only at the longest lags,
+too faintly to lower a datasheet's figure; it raises it where the data show it surely louder. A knock, a door
+or a person climbing in is an outlier of the shortest lag against its running mean: the stencils that contain it
+are left out. Memory is O(1).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from math import comb
+from itertools import combinations
 
 import numpy as np
 
 from .conventions import DRH_TO_RRS, UG_TO_MS2
-from .sensor_model import SensorGrade
+from .earth import beta_fixed
+from .sensor_model import SMALLEST_FIGURE, SensorGrade
 
-DIFFERENCE_ORDER = 4
-BLOCKS_HELD = 600
-"""Blocks in the median (60 s of 0.1-s control steps)."""
-MIN_BLOCKS = 100
-"""Blocks before the meter gives a figure (10 s of 0.1-s control steps)."""
-VERDICT_BLOCKS = 10
-"""The pipeline asks for a verdict every this many blocks (one median per second of data)."""
+LAGS_S = (1.0, 2.0, 4.0, 8.0, 16.0)
+STENCIL = np.array([1.0, -4.0, 6.0, -4.0, 1.0])
+"""The fourth difference of the running sum of α: the third difference of its window means, newest first."""
+MIN_SPAN_S = 10.0
+"""Seconds of stencils a lag needs before its mean square is fitted; three lags are needed for a verdict."""
+OUTLIER_FACTOR = 25.0
+"""A shortest-lag square this many times its running mean is an event, not noise (χ² with 2 dof: p ≈ 1e-6)."""
+MIN_OUTLIER_COUNT = 100
+SETTLE_S = 2.0
+"""Seconds after an event whose stencils are left out too (a knock rings down)."""
+SIGNIFICANCE = 2.0
+"""Standard errors by which the fit must differ from the datasheet's figure before it replaces it."""
+VERDICT_STEPS = 10
+"""The pipeline asks for a verdict every this many control steps (once a second of 0.1-s steps)."""
 ALARM_FACTOR = 2.0
-"""A measured density above this many times the datasheet's is no estimation scatter: the datasheet is wrong
-(or the base vibrates), and σ takes the measured figure."""
-RESOLUTION = 1e-9
-"""Densities (rad/√s, m/s/√s) below this are numerical residue of exact data, not noise: no real IMU is that
-quiet (a strategic-grade gyro is 3e-8 rad/√s, 0.0001°/√h)."""
+"""A density surely this many times the datasheet's (its lower bound) is worth telling the operator."""
+
+
+@dataclass(frozen=True, slots=True)
+class NoiseFigures:
+    """What the residual shows: q = VRW² (m²/s³), N² = ARW² (rad²/s), the bounded disturbance's density S (m²/s),
+    each with its standard error."""
+
+    q: float
+    n2: float
+    s: float
+    q_se: float
+    n2_se: float
+    s_se: float
 
 
 @dataclass(frozen=True, slots=True)
 class NoiseVerdict:
-    """The grade σ should use (the datasheet's, with a measured figure in place of a stated one it exceeds by more
-    than :data:`ALARM_FACTOR`) and what to tell the operator (None: nothing)."""
+    """The grade σ should use and what to tell the operator (None: nothing)."""
 
     grade: SensorGrade
     notice: str | None
 
 
-class NoiseMeter:
-    """Measures the gyro and accelerometer white-noise densities from blocks of raw increments.
+def _weighted_nonnegative_fit(A: np.ndarray, m: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """x ≥ 0 minimising Σ w (A x − m)² over the active sets (3 unknowns: 7 subsets), and the standard errors of the
+    unconstrained fit."""
+    Aw, mw = A * np.sqrt(weights)[:, None], m * np.sqrt(weights)
+    normal = Aw.T @ Aw
+    scale = np.sqrt(np.diag(normal))
+    covariance = np.linalg.pinv(normal / np.outer(scale, scale)) / np.outer(scale, scale)
+    best, best_cost = np.zeros(A.shape[1]), float(mw @ mw)
+    for size in range(1, A.shape[1] + 1):
+        for subset in combinations(range(A.shape[1]), size):
+            cols = list(subset)
+            x_sub = np.linalg.lstsq(Aw[:, cols], mw, rcond=None)[0]
+            if (x_sub < 0.0).any():
+                continue
+            x = np.zeros(A.shape[1])
+            x[cols] = x_sub
+            cost = float(np.sum((Aw @ x - mw) ** 2))
+            if cost < best_cost:
+                best, best_cost = x, cost
+    return best, np.sqrt(np.maximum(np.diag(covariance), 0.0))
 
-    sample_period_s : the IMU sample period dt (s).
+
+class NoiseMeter:
+    """Measures q, N² and S from the fixed-base residual, one α per observation.
+
+    step_s : the observation interval (s). lat : site latitude (rad). gravity : m/s².
     """
 
-    def __init__(self, sample_period_s: float) -> None:
-        self.sample_period_s = sample_period_s
-        self._samples = np.empty((0, 6))   # the last K samples, then the block's: one buffer, no allocation per block
-        self._difference = np.empty((0, 0))   # the K-th difference as a matrix (M, K + M): one product per block
-        self._mean_squares = np.zeros((BLOCKS_HELD, 2))
-        self.blocks = 0
+    def __init__(self, step_s: float, lat: float, gravity: float) -> None:
+        self.step_s = step_s
+        self._lat, self._gravity = lat, gravity
+        self._lags = np.array([max(1, round(lag / step_s)) for lag in LAGS_S])
+        self._lag_s = self._lags * step_s
+        self._capacity = 4 * int(self._lags.max()) + 1
+        self._offsets = np.arange(5)[None, :] * self._lags[:, None]   # (lags, 5): the stencil's steps back
+        self._alpha_sum = np.zeros((self._capacity, 3))   # running sums of α and β, m/s (one term per step)
+        self._beta_sum = np.zeros((self._capacity, 3))
+        self._last_sums = np.zeros((2, 3))
+        self._sums = np.zeros(len(self._lags))
+        self._counts = np.zeros(len(self._lags))
+        self.steps = 0
+        self._bad_until = -1   # the last step of the last event's span
+        self.outliers = 0
+        self.C_n0_b0: np.ndarray | None = None
+        """The rough estimate that takes the reference's curvature out (None: left in, at the start)."""
 
-    def feed(self, samples: np.ndarray) -> None:
-        """One block of M consecutive samples (M, 6): Δθ (3) rad, Δv (3) m/s (the same M every block)."""
-        K, M = DIFFERENCE_ORDER, len(samples)
-        if len(self._samples) != K + M:   # the first block: its own differences only
-            self._samples = np.empty((K + M, 6))
-            self._samples[K:] = samples
-            weights = [(-1.0) ** (K - i) * comb(K, i) for i in range(K + 1)]
-            self._difference = np.array([np.r_[np.zeros(r), weights, np.zeros(M - 1 - r)] for r in range(M)])
-            d = np.diff(samples, n=K, axis=0)
-        else:
-            self._samples[K:] = samples
-            d = self._difference @ self._samples
-        self._samples[:K] = self._samples[-K:]
-        if len(d):
-            squares = np.einsum("ij,ij->j", d, d)
-            self._mean_squares[self.blocks % BLOCKS_HELD] = squares[:3].sum() / (3 * len(d)), squares[3:].sum() / (
-                3 * len(d))
-            self.blocks += 1
+    def feed(self, elapsed_s: float, alpha_b0: np.ndarray) -> None:
+        """α (3,) m/s in b0 axes at an observation, ``elapsed_s`` after the start."""
+        k = self.steps
+        self._last_sums += np.stack((alpha_b0, beta_fixed(self._lat, self._gravity, elapsed_s)))
+        self._alpha_sum[k % self._capacity], self._beta_sum[k % self._capacity] = self._last_sums
+        self.steps += 1
+        ready = k >= 4 * self._lags
+        if not ready[0]:
+            return
+        index = (k - self._offsets) % self._capacity
+        d = STENCIL @ self._alpha_sum[index]   # (lags, 3)
+        if self.C_n0_b0 is not None:
+            d = d - (STENCIL @ self._beta_sum[index]) @ self.C_n0_b0.T
+        d = d / self._lags[:, None]
+        up = alpha_b0 / np.linalg.norm(alpha_b0)
+        squares = 0.5 * (np.einsum("ij,ij->i", d, d) - (d @ up) ** 2)   # per horizontal axis
+        if self._counts[0] >= MIN_OUTLIER_COUNT and squares[0] > OUTLIER_FACTOR * self._sums[0] / self._counts[0]:
+            self.outliers += 1
+            self._bad_until = k + round(SETTLE_S / self.step_s)
+        clean = ready & (k - 4 * self._lags > self._bad_until)
+        self._sums[clean] += squares[clean]
+        self._counts[clean] += 1
 
-    def densities(self) -> tuple[float, float] | None:
-        """(gyro ARW rad/√s, accelerometer VRW m/s/√s) the data show; None before :data:`MIN_BLOCKS` blocks."""
-        if self.blocks < MIN_BLOCKS:
+    def figures(self) -> NoiseFigures | None:
+        """The fit of the lags with :data:`MIN_SPAN_S` of stencils; None before three lags have them."""
+        have = self._counts * self.step_s >= MIN_SPAN_S
+        if have.sum() < 3:
             return None
-        held = self._mean_squares[:min(self.blocks, BLOCKS_HELD)]
-        median = np.partition(held, len(held) // 2, axis=0)[len(held) // 2]
-        variance = median / comb(2 * DIFFERENCE_ORDER, DIFFERENCE_ORDER)
-        gyro, acc = np.sqrt(variance / self.sample_period_s)
-        return float(gyro), float(acc)
+        lag_s, counts = self._lag_s[have], self._counts[have]
+        m = self._sums[have] / counts
+        A = np.column_stack((8.0 / 3.0 * lag_s, 2.0 / 3.0 * self._gravity**2 * lag_s**3, 20.0 / lag_s))
+        # a mean square of n_eff independent χ² terms has variance 2 m² / n_eff; overlapping stencils of one lag are
+        # independent about every other stencil length
+        n_eff = np.maximum(counts * self.step_s / (2.0 * lag_s), 1.0)
+        x, se = _weighted_nonnegative_fit(A, m, n_eff / (2.0 * np.maximum(m, 1e-300) ** 2))
+        return NoiseFigures(*x, *se)
 
     def verdict(self, stated: SensorGrade) -> NoiseVerdict | None:
-        """The measured figures against the datasheet's ``stated``; None before the meter has a figure."""
-        measured = self.densities()
-        if measured is None:
+        """The grade σ should use: the datasheet's, with each density the data tell apart from it replaced by the
+        data's, and the bounded disturbance they show; None before the meter has figures."""
+        f = self.figures()
+        if f is None:
             return None
-        gyro, acc = measured
-        louder = {name: value for name, value, claimed in (("gyro_arw_rad_rts", gyro, stated.gyro_arw_rad_rts),
-                                                            ("acc_vrw_ms_rts", acc, stated.acc_vrw_ms_rts))
-                  if value > max(ALARM_FACTOR * claimed, RESOLUTION)}
-        if not louder:
-            return NoiseVerdict(stated, None)
+        # the white noise and the bounded disturbance are measured at these lags, and an overconfident σ is the
+        # worse failure: σ takes their upper bounds, whatever the datasheet says; the gyro's walk shows only at the
+        # longest lags, too faintly to lower a datasheet's figure: it raises it where the data show it surely louder
+        q = f.q + SIGNIFICANCE * f.q_se
+        n2 = max(stated.gyro_arw_rad_rts**2, f.n2 if f.n2 > SIGNIFICANCE * f.n2_se else 0.0)
+        bounded = f.s + SIGNIFICANCE * f.s_se
+        grade = replace(stated, acc_vrw_ms_rts=max(float(np.sqrt(q)), SMALLEST_FIGURE),
+                        gyro_arw_rad_rts=max(float(np.sqrt(n2)), SMALLEST_FIGURE),
+                        base_motion_m_rts=float(np.sqrt(bounded)))
         parts = []
-        if "gyro_arw_rad_rts" in louder:
-            parts.append(f"gyro noise {gyro / DRH_TO_RRS:.3g}°/√h, {gyro / stated.gyro_arw_rad_rts:.3g}× the "
-                         f"datasheet's {stated.gyro_arw_rad_rts / DRH_TO_RRS:.3g}°/√h (gyro_arw_deg_rth)")
-        if "acc_vrw_ms_rts" in louder:
-            parts.append(f"accelerometer noise {acc / UG_TO_MS2:.3g} µg/√Hz, {acc / stated.acc_vrw_ms_rts:.3g}× the "
-                         f"datasheet's {stated.acc_vrw_ms_rts / UG_TO_MS2:.3g} µg/√Hz (acc_vrw_ug_rthz)")
+        if grade.gyro_arw_rad_rts > ALARM_FACTOR * stated.gyro_arw_rad_rts:
+            parts.append(f"gyro noise {grade.gyro_arw_rad_rts / DRH_TO_RRS:.3g}°/√h, "
+                         f"{grade.gyro_arw_rad_rts / stated.gyro_arw_rad_rts:.3g}× the datasheet's "
+                         f"{stated.gyro_arw_rad_rts / DRH_TO_RRS:.3g}°/√h (gyro_arw_deg_rth)")
+        if f.q - SIGNIFICANCE * f.q_se > (ALARM_FACTOR * stated.acc_vrw_ms_rts) ** 2:   # surely louder
+            parts.append(f"accelerometer noise {grade.acc_vrw_ms_rts / UG_TO_MS2:.3g} µg/√Hz, "
+                         f"{grade.acc_vrw_ms_rts / stated.acc_vrw_ms_rts:.3g}× the datasheet's "
+                         f"{stated.acc_vrw_ms_rts / UG_TO_MS2:.3g} µg/√Hz (acc_vrw_ug_rthz)")
         notice = (f"the data show {' and '.join(parts)}: σ uses the measured figure; check [sensor] or the log's "
-                  "datasheet keys (or the base vibrates)")
-        return NoiseVerdict(replace(stated, **louder), notice)
+                  "datasheet keys") if parts else None
+        return NoiseVerdict(grade, notice)

@@ -31,12 +31,16 @@ class SensorGrade:
     gyro_arw_rad_rts : angle random walk (rad/√s).
     acc_bias_ms2 : accelerometer bias (m/s²).
     acc_vrw_ms_rts : velocity random walk (m/s/√s).
+    base_motion_m_rts : a bounded disturbance of α (base motion, quantisation) as the data show it, seen as white
+        noise of this density per axis (m/√s: √(variance × correlation time); service/align/noise_check.py). No
+        datasheet states it.
     """
 
     gyro_bias_rad_s: float
     gyro_arw_rad_rts: float
     acc_bias_ms2: float
     acc_vrw_ms_rts: float
+    base_motion_m_rts: float = 0.0
 
     @classmethod
     def from_datasheet(cls, gyro_bias_deg_h: float, gyro_arw_deg_rth: float, acc_bias_ug: float,
@@ -118,7 +122,11 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
     bias_heading, bias_level = bias_limit_rad(grade, lat, gravity)
     drift2 = (grade.gyro_bias_rad_s * T) ** 2
     noise_heading2 = sum(heading_noise_variances(grade, lat, gravity, T))
-    noise_level2 = 4.0 * q / (gravity**2 * T) + N2 * T / 3.0
+    # white noise of density S in α itself: LS over (t, t²) leaves Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
+    # Var(δθ) = 3 S / (g² T³)
+    bounded = grade.base_motion_m_rts**2
+    noise_heading2 += 320.0 * bounded / (gravity * OMEGA_IE * np.cos(lat)) ** 2 / T**5
+    noise_level2 = 4.0 * q / (gravity**2 * T) + N2 * T / 3.0 + 3.0 * bounded / (gravity**2 * T**3)
     heading2 = bias_heading**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
     level2 = bias_level**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
     return AttitudeSigma(min(float(np.sqrt(heading2)) / DEG, SIGMA_UNKNOWN_DEG),
