@@ -421,9 +421,10 @@ class AlignmentPipeline:
             return replace(record, phase="aligned") if self.fine is None and record.converged else record
         sigma = self.fine.sigma
         # the coarse stage runs on beside the loops: the output is whichever of the two claims the smaller heading σ,
-        # so the fine stage never makes the heading worse than the coarse stage alone would give
+        # so the fine stage never makes the heading worse than the coarse stage alone would give (a compass-alone
+        # start from a given attitude is the loops' alone)
         solution = coarse.solution_at(t_sample, q_b_b0)
-        if sigma.heading_deg < solution.heading_sigma_deg:
+        if self._initial_C_b_n is not None or sigma.heading_deg < solution.heading_sigma_deg:
             C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
             solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
                                         coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
