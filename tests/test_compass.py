@@ -145,9 +145,10 @@ def test_live_slices_and_offline_give_bit_identical_results_after_the_passes():
     same = np.array([r == e for r, e in zip(got, expected, strict=True)])
     differs = np.flatnonzero(~same)
     # the store fills at 80 s; live answers from the plain loops while the passes run in slices ...
-    assert not differs or got[differs[0]].t >= 80.0   # the output may be the coarse stage throughout
+    # (the output may be the coarse stage's throughout: then nothing differs)
+    assert len(differs) == 0 or got[differs[0]].t >= 80.0
     # ... and once they are done it gives, bit for bit, what the offline replay gives
-    assert got[differs[-1]].t < 100.0 and same[differs[-1] + 1:].all()
+    assert len(differs) == 0 or (got[differs[-1]].t < 100.0 and same[differs[-1] + 1:].all())
     steps = 2 * Config().fine.stored_pairs * live.fine.buffer.capacity
     assert 0 < queued <= steps // Config().fine.live_pass_steps + 1
 
