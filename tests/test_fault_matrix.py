@@ -2,7 +2,7 @@
 
 GIVEN the daemon aligning a simulated swing base fed at ×40 real time, WHEN one fault is injected
 after 20 s of data, THEN the daemon keeps running, the status counters say exactly what happened,
-and it is `aligned` again by the end of the 80-s run once good data has resumed.
+and it is `aligned` again by the end of the 110-s run once good data has resumed.
 """
 from __future__ import annotations
 
@@ -23,10 +23,10 @@ from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
 
-SECONDS, FAULT_AT_S, SPEED = 80.0, 20.0, 40.0
+SECONDS, FAULT_AT_S, SPEED = 110.0, 20.0, 40.0
 FAST = {"fine": {"enabled": False}, "output": {"period_s": 1.0}}
 """OPREQ alone: `aligned` (= converged, with no fine stage) about 32 s after a start, so that an
-80-s run is aligned again at its end even after a restart at 20 s."""
+110-s run is aligned again at its end even after a restart at 20 s."""
 
 
 def data():
