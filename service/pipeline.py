@@ -14,7 +14,7 @@ from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
 from .align.compass import GainSchedule
-from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm
+from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm, with_heading_of
 from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
@@ -50,6 +50,24 @@ def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, thresh
                         heading_sigma_deg=solution.heading_sigma_deg, level_sigma_deg=solution.level_sigma_deg,
                         converged=bool(solution.heading_sigma_deg <= threshold_deg), rho=float(solution.rho),
                         trace_P=float(solution.trace_P), n_obs=solution.n_obs)
+
+
+def smaller_sigma_solution(coarse: AttitudeSolution, C_fine: np.ndarray, fine_heading_sigma_deg: float,
+                           fine_level_sigma_deg: float) -> AttitudeSolution:
+    """The output once the loops run beside the coarse stage (which runs on): the level of whichever of the two
+    claims the smaller level σ, the heading of whichever claims the smaller heading σ, each with its σ. So the fine
+    stage never makes either worse than the coarse stage alone would give (a 600-s least-squares heading can beat a
+    narrow loop, while the loops hold the level that the inertial-frame fit lets drift by ε·T)."""
+    C_coarse = dcm_from_quat(coarse.q_b_n)
+    level_fine = fine_level_sigma_deg < coarse.level_sigma_deg
+    heading_fine = fine_heading_sigma_deg < coarse.heading_sigma_deg
+    if not level_fine and not heading_fine:
+        return coarse
+    C_level = C_fine if level_fine else C_coarse
+    C_b_n = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
+    return replace(coarse, q_b_n=quat_from_dcm(C_b_n),
+                   heading_sigma_deg=min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
+                   level_sigma_deg=min(fine_level_sigma_deg, coarse.level_sigma_deg))
 
 
 def _fold_until(solver: RecursiveK | CentredWahba, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int,
@@ -420,13 +438,13 @@ class AlignmentPipeline:
             # without a fine stage, a converged coarse solution is the end of the alignment
             return replace(record, phase="aligned") if self.fine is None and record.converged else record
         sigma = self.fine.sigma
-        # the coarse stage runs on beside the loops: the output is whichever of the two claims the smaller heading σ,
-        # so the fine stage never makes the heading worse than the coarse stage alone would give (a compass-alone
-        # start from a given attitude is the loops' alone)
         solution = coarse.solution_at(t_sample, q_b_b0)
-        if self._initial_C_b_n is not None or sigma.heading_deg < solution.heading_sigma_deg:
-            C_b_n = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
-            solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
+        C_fine = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
+        if self._initial_C_b_n is not None:
+            # a compass-alone start from a given attitude (evaluation) is the loops' alone
+            solution = AttitudeSolution(t_sample, quat_from_dcm(C_fine), sigma.heading_deg, sigma.level_deg,
                                         coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
+        else:
+            solution = smaller_sigma_solution(solution, C_fine, sigma.heading_deg, sigma.level_deg)
         aligned = self.fine.schedule_complete and solution.heading_sigma_deg <= threshold
         return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)

@@ -13,6 +13,7 @@ from sinsalign.service.align.conventions import (
     quat_rotate,
     rotvec_from_quat,
     skew,
+    with_heading_of,
     wrap_pi,
 )
 
@@ -83,3 +84,14 @@ def test_misalignment_up_component_is_the_clockwise_heading_error():
 
 def test_wrap_pi():
     np.testing.assert_allclose(wrap_pi(np.array([3 * np.pi, -3 * np.pi + 0.1, 0.2])), [-np.pi, -np.pi + 0.1, 0.2])
+
+
+@pytest.mark.parametrize("dpsi_deg", [0.01, -0.3, 2.0])
+def test_with_heading_of_keeps_one_tilt_and_takes_the_other_heading(dpsi_deg):
+    """The tilt (the Up axis seen in the body) of the first, the heading (φ_U = 0) of the second, to rounding."""
+    C_level = dcm_from_euler(1.0, 3.0 * DEG, -2.0 * DEG)
+    C_heading = dcm_from_euler(1.0 + dpsi_deg * DEG, 3.01 * DEG, -1.98 * DEG)
+    C = with_heading_of(C_level, C_heading)
+    np.testing.assert_allclose(C @ C.T, np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(C.T[:, 2], C_level.T[:, 2], atol=1e-15)
+    assert abs(misalignment(C, C_heading)[2]) < 1e-9

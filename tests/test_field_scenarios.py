@@ -33,7 +33,8 @@ def parked_figures(runs) -> dict[str, float]:
                                                                             / np.sqrt((err**2).mean())),
             "min_sigma_over_err": float((sigma / np.maximum(np.abs(err), 1e-12)).min()),
             "converged_from_s": converged_from, "beyond_3sigma": beyond,
-            "disturbances": sum(r.disturbances for r in runs)}
+            "disturbances": sum(r.disturbances for r in runs),
+            "phases_out_of_order": sum(r.phases != ("coarse", "fine", "aligned") for r in runs)}
 
 
 def assert_parked(runs) -> None:
@@ -42,17 +43,7 @@ def assert_parked(runs) -> None:
     assert 0.5 <= f["sigma_over_rms"] <= 2.0, f
     assert f["min_sigma_over_err"] >= 1.0 / 3.0, f
     assert f["converged_from_s"] <= 600.0 and f["beyond_3sigma"] == 0 and f["disturbances"] == 0, f
-
-
-def phases_in_order(name: str, seed: int, duration_s: float) -> list[str]:
-    scenario = get_scenario(name).for_seed(seed)
-    pipeline = AlignmentPipeline(Config(), scenario.site, scenario.rate_hz, scenario.stated_datasheet())
-    phases = []
-    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, duration_s, seed):
-        for r in pipeline.process(chunk.t, chunk.dtheta, chunk.dv):
-            if not phases or phases[-1] != r.phase:
-                phases.append(r.phase)
-    return phases
+    assert f["phases_out_of_order"] == 0, f
 
 
 def test_a_parked_car_aligns_on_the_limit_with_an_honest_sigma():
@@ -62,7 +53,7 @@ def test_a_parked_car_aligns_on_the_limit_with_an_honest_sigma():
     f = parked_figures(runs)
     assert f["max_rel_deg"] <= 0.03 and f["min_sigma_over_err"] >= 1.0 / 3.0, f
     assert f["converged_from_s"] <= 600.0 and f["beyond_3sigma"] == 0 and f["disturbances"] == 0, f
-    assert phases_in_order("parked-nodatasheet", 1, 700.0) == ["coarse", "fine", "aligned"]
+    assert f["phases_out_of_order"] == 0, f
 
 
 @pytest.mark.slow

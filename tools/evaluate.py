@@ -48,6 +48,8 @@ class RunResult:
     counters: dict[str, int] | None = None
     mount_error_deg: np.ndarray | None = None
     """Transfer alignment: the final mounting estimate's error (3,) deg, in the master's axes."""
+    phases: tuple[str, ...] = ()
+    """The output phases in the order they appeared (a phase that comes back counts again)."""
 
 
 def nearest_epoch(runs: Sequence[RunResult], t_s: float) -> int:
@@ -106,9 +108,10 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     mount_error = None
     if scenario.master is not None:
         mount_error = misalignment(pipeline.mounting()[0], scenario.motion.mounting) / DEG
+    phases = tuple(r.phase for i, r in enumerate(records) if i == 0 or records[i - 1].phase != r.phase)
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
                      np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
-                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error)
+                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error, phases)
 
 
 def _run_task(args: tuple[str, int, dict, float | None, float | None, str | None, dict]) -> RunResult:

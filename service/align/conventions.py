@@ -171,6 +171,15 @@ def misalignment(C_b_n_est: np.ndarray, C_b_n_true: np.ndarray) -> np.ndarray:
     return -rotvec_from_quat(quat_from_dcm(M))
 
 
+def with_heading_of(C_b_n_level: np.ndarray, C_b_n_heading: np.ndarray) -> np.ndarray:
+    """C_b^n (3, 3) with the level (tilt) of ``C_b_n_level`` and the heading of ``C_b_n_heading``: the first turned
+    about the n-frame Up axis by their heading difference φ_U (a turn about Up leaves the tilt as it is)."""
+    phi_up = misalignment(C_b_n_level, C_b_n_heading)[2]
+    c, s = np.cos(phi_up), np.sin(phi_up)
+    turn_up = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    return turn_up @ C_b_n_level
+
+
 def wrap_pi(angle: np.ndarray) -> np.ndarray:
     """Wrap an angle (rad) into [-π, π)."""
     return np.mod(np.asarray(angle) + np.pi, 2.0 * np.pi) - np.pi

@@ -262,17 +262,19 @@ SCENARIOS["seed002"] = _scenario(
 PARKED_SITE = Site(34.0 * DEG, 118.0 * DEG)
 ARCSEC = DEG / 3600.0
 PARKED_ERRORS = ImuErrors(gyro_bias_rad_s=(0.01 * DH_TO_RS, 0.007 * DH_TO_RS, 0.005 * DH_TO_RS),
-                          gyro_arw_rad_rts=0.001 * DRH_TO_RRS,
+                          gyro_arw_rad_rts=0.0005 * DRH_TO_RRS,
                           acc_bias_ms2=(50.0 * UG_TO_MS2, 30.0 * UG_TO_MS2, 20.0 * UG_TO_MS2),
                           acc_vrw_ms_rts=5.0 * UG_TO_MS2, gyro_quantum_rad=0.93 * ARCSEC,
                           acc_quantum_mps=500.0 * UG_TO_MS2)
 """A navigation-grade ring-laser-gyro IMU within the default datasheet (0.01°/h, 0.001°/√h, 50 µg, 5 µg/√Hz):
-biases per axis (x, y, z), signs drawn per seed; counts of 0.93″ and 500 µg·s."""
+biases per axis (x, y, z), signs drawn per seed; counts of 0.93″ and 500 µg·s. Its angle random walk, 0.0005°/√h,
+is what a recording whose heading sits within 0.02° of the truth from 120 s implies (the noise floor
+N/(Ω cos L √T) is then 0.009° at 120 s); the default datasheet overstates it twice."""
 PARKED_DESCRIPTION = (
     "parked car: L=34°, 100 Hz, 1800 s; per seed heading 0–360°, pitch/roll ±2°, engine at 20–40 Hz "
     "(1e-4–5e-4°, 0.02–0.1 m/s²), rocking 0.002–0.01° at 1–3 Hz (slowly modulated), knocks 0.01–0.3° ringing at "
     "1.5–3 Hz (3 per 10 min), people in/out (2 per 30 min: tilt 0.1–0.5°, sink 1–3 cm, bounce); RLG gyro "
-    "0.01/0.007/0.005°/h bias + 0.001°/√h, acc 50/30/20 µg + 5 µg/√Hz (bias signs drawn per seed and axis), "
+    "0.01/0.007/0.005°/h bias + 0.0005°/√h, acc 50/30/20 µg + 5 µg/√Hz (bias signs drawn per seed and axis), "
     "counts of 0.93″ and 500 µg·s")
 
 
