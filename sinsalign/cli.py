@@ -152,7 +152,7 @@ def _tool(name: str) -> Callable:
     return getattr(importlib.import_module(f"sinsalign.tools.{module}"), function)
 
 
-def _aided_table(name: str, seeds: range, out: Path) -> None:
+def _aided_table(name: str, seeds: range, out: Path, argv: list[str]) -> None:
     """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates and
     seed002-rates: slower GNSS receivers and master INS) and plots."""
     table, plot = (_tool(f) for f in AIDED_TABLES[name])
@@ -160,9 +160,16 @@ def _aided_table(name: str, seeds: range, out: Path) -> None:
     if name == "seed002":
         from sinsalign.tools.evaluate_transfer import phase1_comparison
         text += "\n\n" + phase1_comparison(seeds)
+    _write_table(name, text, out, plot(runs, out / f"{name}_heading.png"), argv)
+
+
+def _write_table(name: str, text: str, out: Path, png: Path, argv: list[str]) -> None:
+    """Print an eval's tables and save them as OUT/NAME.md, both stamped with the command line and the commit."""
+    from sinsalign.tools.stamp import stamp
+    text = f"{stamp(argv)}\n\n{text}"
     (out / f"{name}.md").write_text(text + "\n")
     print(text)
-    print(f"\nplot: {plot(runs, out / f'{name}_heading.png')}\ntable: {out / f'{name}.md'}")
+    print(f"\nplot: {png}\ntable: {out / f'{name}.md'}")
 
 
 def cmd_eval(args: argparse.Namespace) -> int:
@@ -188,7 +195,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
                           "(sinsalign sim --list)")
     out.mkdir(parents=True, exist_ok=True)
     if aided:
-        _aided_table(args.scenario, seeds, out)
+        _aided_table(args.scenario, seeds, out, args.argv)
         return 0
     runs = monte_carlo(args.scenario, seeds, config.as_dict())
     text = scenario_table(args.scenario, runs)
@@ -205,10 +212,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         table, all_runs = solver_table(args.scenario, seeds)
         text += "\n\n" + table
         others = {k: v for k, v in all_runs.items() if k != "OPREQ"}
-    png = plot_heading(args.scenario, runs, out / f"{args.scenario}_heading.png", others)
-    (out / f"{args.scenario}.md").write_text(text + "\n")
-    print(text)
-    print(f"\nplot: {png}\ntable: {out / (args.scenario + '.md')}")
+    _write_table(args.scenario, text, out, plot_heading(args.scenario, runs, out / f"{args.scenario}_heading.png",
+                                                        others), args.argv)
     return 0
 
 
@@ -592,6 +597,7 @@ def main(argv: list[str] | None = None) -> int:
     from sinsalign.service.config import ConfigError
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.argv = sys.argv[1:] if argv is None else list(argv)   # the command line a generated table is stamped with
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

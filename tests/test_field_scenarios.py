@@ -11,49 +11,31 @@ import numpy as np
 import pytest
 from sinsalign.service.config import Config
 from sinsalign.service.pipeline import AlignmentPipeline
-from sinsalign.tools.evaluate import monte_carlo
+from sinsalign.tools.evaluate import field_figures, monte_carlo
 from sinsalign.tools.sim.imu import simulate
-from sinsalign.tools.sim.scenarios import get_scenario
+from sinsalign.tools.sim.scenarios import PARKED_FIGURES_FROM_S, get_scenario
 
-FROM_S = 300.0
+FROM_S = PARKED_FIGURES_FROM_S
 MOVING_MPS = 0.1
 
 
-def parked_figures(runs) -> dict[str, float]:
-    """The acceptance figures of parked runs from ``FROM_S`` on: the largest |heading error − limit|, the reported σ
-    over the RMS error (both over seeds and epochs), the first epoch every run is converged, the disturbances."""
-    late = runs[0].t >= FROM_S
-    err = np.array([r.phi_deg[late, 2] for r in runs])
-    rel = np.array([r.phi_deg[late, 2] - r.limit_deg[2] for r in runs])
-    sigma = np.array([r.heading_sigma_deg[late] for r in runs])
-    converged_from = max(float(r.t[np.flatnonzero(~r.converged)[-1] + 1]) if r.converged[-1] else np.inf
-                         for r in runs)
-    beyond = sum(int(np.sum(r.converged & (np.abs(r.phi_deg[:, 2]) > 3 * r.heading_sigma_deg))) for r in runs)
-    return {"max_rel_deg": float(np.abs(rel).max()), "sigma_over_rms": float(np.sqrt((sigma**2).mean())
-                                                                            / np.sqrt((err**2).mean())),
-            "min_sigma_over_err": float((sigma / np.maximum(np.abs(err), 1e-12)).min()),
-            "converged_from_s": converged_from, "beyond_3sigma": beyond,
-            "disturbances": sum(r.disturbances for r in runs),
-            "phases_out_of_order": sum(r.phases != ("coarse", "fine", "aligned") for r in runs)}
-
-
 def assert_parked(runs) -> None:
-    f = parked_figures(runs)
-    assert f["max_rel_deg"] <= 0.03, f
-    assert 0.5 <= f["sigma_over_rms"] <= 2.0, f
-    assert f["min_sigma_over_err"] >= 1.0 / 3.0, f
-    assert f["converged_from_s"] <= 600.0 and f["beyond_3sigma"] == 0 and f["disturbances"] == 0, f
-    assert f["phases_out_of_order"] == 0, f
+    f = field_figures(runs, FROM_S)
+    assert f.max_rel_deg <= 0.03, f
+    assert 0.5 <= f.sigma_over_rms <= 2.0, f
+    assert f.min_sigma_over_err >= 1.0 / 3.0, f
+    assert f.converged_from_s <= 600.0 and f.beyond_3sigma == 0 and f.disturbances == 0, f
+    assert f.phases_out_of_order == 0, f
 
 
 def test_a_parked_car_aligns_on_the_limit_with_an_honest_sigma():
     """Two seeds, 900 s, one log with and one without datasheet keys (20 seeds of 1800 s under -m slow)."""
     runs = (monte_carlo("parked", [0], progress=False, duration_s=900.0)
             + monte_carlo("parked-nodatasheet", [1], progress=False, duration_s=900.0))
-    f = parked_figures(runs)
-    assert f["max_rel_deg"] <= 0.03 and f["min_sigma_over_err"] >= 1.0 / 3.0, f
-    assert f["converged_from_s"] <= 600.0 and f["beyond_3sigma"] == 0 and f["disturbances"] == 0, f
-    assert f["phases_out_of_order"] == 0, f
+    f = field_figures(runs, FROM_S)
+    assert f.max_rel_deg <= 0.03 and f.min_sigma_over_err >= 1.0 / 3.0, f
+    assert f.converged_from_s <= 600.0 and f.beyond_3sigma == 0 and f.disturbances == 0, f
+    assert f.phases_out_of_order == 0, f
 
 
 @pytest.mark.slow

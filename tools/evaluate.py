@@ -211,6 +211,48 @@ def honesty(runs: Sequence[RunResult], from_s: float = HONEST_FROM_S) -> Honesty
     return Honesty(float(inside.mean()), beyond, float(np.median(first)) if first else float("inf"))
 
 
+ALIGNMENT_PHASES = ("coarse", "fine", "aligned")
+
+
+@dataclass(frozen=True, slots=True)
+class FieldFigures:
+    """A fixed-base scenario's acceptance figures from ``from_s`` on, over every seed and epoch: the largest
+    |heading error − limit| (°); the reported σ's RMS over the actual error's RMS, and the smallest σ/|error|; the
+    first time from which every run stays converged (s; inf if one ends unconverged); converged epochs beyond 3σ;
+    restarts; runs whose phases did not go coarse → fine → aligned."""
+
+    from_s: float
+    max_rel_deg: float
+    sigma_over_rms: float
+    min_sigma_over_err: float
+    converged_from_s: float
+    beyond_3sigma: int
+    disturbances: int
+    phases_out_of_order: int
+
+
+def field_figures(runs: Sequence[RunResult], from_s: float) -> FieldFigures:
+    late = runs[0].t >= from_s
+    err = np.array([r.phi_deg[late, 2] for r in runs])
+    rel = np.array([r.phi_deg[late, 2] - r.limit_deg[2] for r in runs])
+    sigma = np.array([r.heading_sigma_deg[late] for r in runs])
+    converged_from = max(float(r.t[np.flatnonzero(~r.converged)[-1] + 1]) if r.converged[-1] else np.inf
+                         for r in runs)
+    return FieldFigures(from_s, float(np.abs(rel).max()), float(np.sqrt((sigma**2).mean() / (err**2).mean())),
+                        float((sigma / np.maximum(np.abs(err), 1e-12)).min()), converged_from,
+                        honesty(runs).converged_beyond_3sigma, sum(r.disturbances for r in runs),
+                        sum(r.phases != ALIGNMENT_PHASES for r in runs))
+
+
+def field_line(runs: Sequence[RunResult], from_s: float) -> str:
+    """:func:`field_figures` as one line of text."""
+    f = field_figures(runs, from_s)
+    return (f"from {f.from_s:g} s: max |err−limit| {f.max_rel_deg:.4f}°; σ / RMS error {f.sigma_over_rms:.2f} "
+            f"(smallest σ/|err| {f.min_sigma_over_err:.2f}); every run converged from {f.converged_from_s:.0f} s; "
+            f"converged epochs beyond 3σ: {f.beyond_3sigma}; restarts: {f.disturbances}; runs not coarse → fine → "
+            f"aligned: {f.phases_out_of_order}")
+
+
 def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
     """Markdown table of one scenario: per window, heading and level errors relative to the limit."""
     scenario = get_scenario(name)
@@ -228,6 +270,8 @@ def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
               f"|heading err| ≤ 2σ after {HONEST_FROM_S:g} s: {100 * h.fraction_within_2sigma:.1f} %; "
               f"converged epochs with |err| > 3σ: {h.converged_beyond_3sigma}; "
               f"median first converged: {h.first_converged_s:.0f} s"]
+    if scenario.field_from_s is not None:
+        lines += ["", field_line(runs, scenario.field_from_s)]
     return "\n".join(lines)
 
 

@@ -76,6 +76,9 @@ class Scenario:
     None: ``motion`` for every seed."""
     states_datasheet: bool = True
     """The IMU log states ``grade`` as its datasheet; False: the log states none (the configured one serves)."""
+    field_from_s: float | None = None
+    """The field acceptance figures (``eval``'s last line: error, σ honesty, convergence, restarts, phases) count
+    from this time (s); None: the scenario has none."""
 
     def for_seed(self, seed: int) -> Scenario:
         """The scenario as seed ``seed`` runs it (its own motion and bias signs, if drawn)."""
@@ -260,6 +263,8 @@ SCENARIOS["seed002"] = _scenario(
 
 
 PARKED_SITE = Site(34.0 * DEG, 118.0 * DEG)
+PARKED_FIGURES_FROM_S = 300.0
+"""The parked car's figures count from 5 minutes: the heading within 0.03° of its limit, σ honest from then on."""
 ARCSEC = DEG / 3600.0
 PARKED_ERRORS = ImuErrors(gyro_bias_rad_s=(0.01 * DH_TO_RS, 0.007 * DH_TO_RS, 0.005 * DH_TO_RS),
                           gyro_arw_rad_rts=0.0005 * DRH_TO_RRS,
@@ -282,7 +287,7 @@ def _parked() -> Scenario:
     scenario = _scenario("parked", PARKED_DESCRIPTION + "; the log states the matching datasheet", PARKED_SITE,
                          parked_motion(0), PARKED_ERRORS, 100.0, 1800.0, ((300.0, 600.0), (1500.0, 1800.0)),
                          random_bias_signs=True)
-    return replace(scenario, motion_for_seed=parked_motion)
+    return replace(scenario, motion_for_seed=parked_motion, field_from_s=PARKED_FIGURES_FROM_S)
 
 
 TACTICAL_GRADE = SensorGrade.from_datasheet(1.0, 0.05, 300.0, 50.0)
