@@ -25,6 +25,7 @@ from sinsalign.service.pipeline import AlignmentPipeline
 
 from .sim.aiding import scenario_aiding, with_faults
 from .sim.imu import ERROR_SOURCES, simulate
+from .sim.parked import DrivenMotion
 from .sim.scenarios import Scenario, get_scenario
 
 COARSE_ONLY = {"fine": {"enabled": False}}
@@ -50,6 +51,8 @@ class RunResult:
     """Transfer alignment: the final mounting estimate's error (3,) deg, in the master's axes."""
     phases: tuple[str, ...] = ()
     """The output phases in the order they appeared (a phase that comes back counts again)."""
+    disturbed: np.ndarray | None = None
+    """Per output epoch: the phase is ``disturbed``."""
 
 
 def nearest_epoch(runs: Sequence[RunResult], t_s: float) -> int:
@@ -111,7 +114,8 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     phases = tuple(r.phase for i, r in enumerate(records) if i == 0 or records[i - 1].phase != r.phase)
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
                      np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
-                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error, phases)
+                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error, phases,
+                     np.array([r.phase == "disturbed" for r in records]))
 
 
 def _run_task(args: tuple[str, int, dict, float | None, float | None, str | None, dict]) -> RunResult:
@@ -253,6 +257,51 @@ def field_line(runs: Sequence[RunResult], from_s: float) -> str:
             f"aligned: {f.phases_out_of_order}")
 
 
+MOVING_MPS = 0.1
+"""A base is moving once its speed passes this (m/s)."""
+
+
+@dataclass(frozen=True, slots=True)
+class DriveFigures:
+    """A driven scenario's figures over its runs: when the base first passes ``MOVING_MPS`` (s), the longest delay
+    from then to the first ``disturbed`` epoch (s; inf if a run never reports it), converged epochs while moving;
+    once it is parked again (the last window, if the base is at rest there): the largest |heading error| (°) and
+    the epochs not converged (None if it never stops)."""
+
+    moving_from_s: float
+    detect_delay_s: float
+    converged_while_moving: int
+    parked_max_heading_err_deg: float | None
+    parked_unconverged: int | None
+
+
+def drive_figures(scenario: Scenario, runs: Sequence[RunResult]) -> DriveFigures:
+    t = runs[0].t
+    speed = np.abs(scenario.motion.speed_and_accel(t)[0])
+    grid = np.arange(0.0, scenario.duration_s, 0.01)
+    moving_from = float(grid[np.argmax(np.abs(scenario.motion.speed_and_accel(grid)[0]) > MOVING_MPS)])
+    delays = [float(t[np.argmax(r.disturbed & (t > moving_from))]) - moving_from
+              if (r.disturbed & (t > moving_from)).any() else np.inf for r in runs]
+    moving = sum(int(np.sum(r.converged & (speed > MOVING_MPS))) for r in runs)
+    parked = t >= scenario.eval_windows_s[-1][0]
+    if (speed[parked] > MOVING_MPS).any():
+        return DriveFigures(moving_from, max(delays), moving, None, None)
+    return DriveFigures(moving_from, max(delays), moving,
+                        float(max(np.abs(r.phi_deg[parked, 2]).max() for r in runs)),
+                        sum(int(np.sum(~r.converged[parked])) for r in runs))
+
+
+def drive_line(scenario: Scenario, runs: Sequence[RunResult]) -> str:
+    """:func:`drive_figures` as one line of text."""
+    f = drive_figures(scenario, runs)
+    line = (f"moving (> {MOVING_MPS:g} m/s) from {f.moving_from_s:.2f} s: `disturbed` within {f.detect_delay_s:.2f} s "
+            f"(longest over the runs); converged epochs while moving: {f.converged_while_moving}")
+    if f.parked_max_heading_err_deg is None:
+        return line
+    return (line + f"; parked again, from {scenario.eval_windows_s[-1][0]:g} s: largest |heading error| "
+            f"{f.parked_max_heading_err_deg:.4f}°, epochs not converged: {f.parked_unconverged}")
+
+
 def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
     """Markdown table of one scenario: per window, heading and level errors relative to the limit."""
     scenario = get_scenario(name)
@@ -272,6 +321,8 @@ def scenario_table(name: str, runs: Sequence[RunResult]) -> str:
               f"median first converged: {h.first_converged_s:.0f} s"]
     if scenario.field_from_s is not None:
         lines += ["", field_line(runs, scenario.field_from_s)]
+    if isinstance(scenario.motion, DrivenMotion):
+        lines += ["", drive_line(scenario, runs)]
     return "\n".join(lines)
 
 
