@@ -145,7 +145,7 @@ class DisturbanceConfig:
     enabled: bool = True
     velocity_threshold_mps: float = 0.1
     window_s: float = 2.0
-    check_interval_s: float = 0.5
+    check_interval_s: float = 0.1
     hold_s: float = 10.0
     action: str = "restart"
 

@@ -428,6 +428,8 @@ class AlignmentPipeline:
         if episode is not None or t_sample < self._disturbed_until:
             # nothing converged survives a disturbance until the restarted alignment earns it again
             return replace(record, phase="disturbed", converged=False)
+        if record.converged and self.motion is not None and self.motion.suspect:
+            return replace(record, converged=False)   # a base that may be starting to move
         return record
 
     def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,

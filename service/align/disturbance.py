@@ -10,7 +10,9 @@ base, metres per second within seconds for a driven one.
 :class:`MotionMonitor` watches that velocity at every check:
 
 - **still**: the velocity gained over the last ``window_s``, under the estimate of ``window_s``
-  ago (so that the fit has not bent itself around the new motion), stays below the threshold;
+  ago (so that the fit has not bent itself around the new motion), stays below the threshold
+  (above a quarter of it, with the estimate's heading moving by more than 2σ over the window, the
+  base is ``suspect``: the pipeline withholds ``converged``);
 - **moving**: it passed the threshold. The estimate of the window's start is frozen as the
   trusted attitude (the gyros carry it on), and the velocity gained since the window's start is
   tracked under it, with its drift bound (the trusted tilt times g times the time, its heading
@@ -26,8 +28,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .conventions import misalignment
 from .observations import ObservationSource
 
+SUSPECT_FRACTION = 0.25
+"""A base that gains more than this fraction of the threshold over a window, while the estimate's heading moves
+by more than ``SUSPECT_SIGMAS`` of its σ over the same window, may be starting to move: a gyrocompass reads a
+velocity as heading (0.06 m/s a minute into a drive-off turns it by 0.4°, σ 0.07°), so nothing is reported
+converged until the motion is confirmed or the estimate holds still again. A person climbing into a parked car
+moves it by a few cm/s, which late in an alignment turns the heading by far less than its σ."""
+SUSPECT_SIGMAS = 2.0
 DRIFT_SIGMAS = 3.0
 """The drift bound of the tracked velocity, in standard deviations of the trusted attitude's error."""
 
@@ -78,6 +88,10 @@ class MotionMonitor:
         self._C = np.zeros((self._n + 1, 3, 3))
         self._count = 0
         self.episode: MotionEpisode | None = None
+        self.window_speed_mps = 0.0
+        """The horizontal velocity gained over the last window at the last check (m/s; 0 until the window fills)."""
+        self.suspect = False
+        """The base may be starting to move (see :data:`SUSPECT_FRACTION`), as of the last check."""
 
     def _gained(self, C_b0_n0: np.ndarray, elapsed_s: float, alpha: np.ndarray, beta: np.ndarray,
                 alpha_from: np.ndarray, beta_from: np.ndarray) -> tuple[float, float]:
@@ -104,6 +118,10 @@ class MotionMonitor:
         if episode is None:
             speed, _ = self._gained(self._C[oldest], elapsed_s, alpha_b0, beta, self._alpha[oldest],
                                     self._beta[oldest])
+            self.window_speed_mps = speed
+            heading_moved = abs(misalignment(C_b0_n0, self._C[oldest])[2])
+            self.suspect = speed > SUSPECT_FRACTION * self.threshold_mps and (
+                heading_moved > SUSPECT_SIGMAS * heading_sigma_rad)
             if speed <= self.threshold_mps:
                 return None
             self.episode = MotionEpisode(float(self._elapsed[oldest]), self._alpha[oldest].copy(),
@@ -112,6 +130,7 @@ class MotionMonitor:
             return MotionCheck("moving", speed)
         window_speed, _ = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, self._alpha[oldest],
                                        self._beta[oldest])
+        self.window_speed_mps = window_speed
         speed, turn = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, episode.alpha_start,
                                    episode.beta_start)
         episode.speed_mps, episode.peak_mps = speed, max(episode.peak_mps, speed)
@@ -125,5 +144,6 @@ class MotionMonitor:
         if elapsed_s - episode.still_since_s < self.settle_s:
             return MotionCheck("moving", speed)
         self.episode = None
+        self.window_speed_mps, self.suspect = 0.0, False
         self._count = 0   # the window starts afresh: the next detection compares with data after the rest
         return MotionCheck("stopped", episode.peak_mps, restart=episode.peak_mps > 2.0 * self.threshold_mps + drift)
