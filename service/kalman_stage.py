@@ -45,19 +45,22 @@ class KalmanStagePipeline(AlignmentPipeline):
                 self.fine.update(name, value)
         return True
 
+    handover_limit_key = "handover_heading_sigma_deg"
+    """The ``[aiding]`` key of the largest coarse heading σ (deg) the Kalman stage starts from."""
+
     def _handover_solution(self, t_end: float, q_b_b0: np.ndarray, notice: tuple[str, str] | None
                            ) -> AttitudeSolution | None:
         """The coarse solution at the step's end to start the filter from, or None while its heading σ is above
-        ``aiding.handover_heading_sigma_deg``: a linear filter started several degrees off turns overconfident
+        ``aiding.<handover_limit_key>``: a linear filter started several degrees off turns overconfident
         (seed 003 at 20 m/s: a 4°-σ window left 3-5° errors at σ 0.3°). ``notice`` (what comes before and after
         "heading σ … > …") tells the operator once why the coarse stage goes on; None: nothing to tell."""
         solution = self.coarse.solution_at(t_end, q_b_b0)
-        limit = self.config.aiding.handover_heading_sigma_deg
+        limit = getattr(self.config.aiding, self.handover_limit_key)
         if solution.heading_sigma_deg <= limit:
             return solution
         if notice is not None:
             self.last_notice = self.last_notice or (f"{notice[0]}heading σ {solution.heading_sigma_deg:.2f}° > "
-                                                    f"aiding.handover_heading_sigma_deg {limit:g}°{notice[1]}")
+                                                    f"aiding.{self.handover_limit_key} {limit:g}°{notice[1]}")
         return None
 
     def aiding_counters(self) -> dict[str, int]:

@@ -18,7 +18,15 @@ import numpy as np
 from ..protocol.results import ResultRecord
 from .align.coarse import InertialCoarseAlignment
 from .align.conventions import DEG, dcm_from_euler, dcm_from_quat, quat_from_dcm
-from .align.kalman import ACC_BIAS, PHI, ErrorStateFilter, GnssVelocity, MasterAttitude, antenna_lever_velocity
+from .align.kalman import (
+    ACC_BIAS,
+    PHI,
+    ErrorStateFilter,
+    GnssVelocity,
+    LeverVelocity,
+    MasterAttitude,
+    antenna_lever_velocity,
+)
 from .align.sensor_model import SIGMA_UNKNOWN_DEG
 from .align.solvers import GroupedWahba
 from .align.transfer import MASTER_COLUMNS, MasterSource
@@ -125,6 +133,7 @@ class TransferPipeline(GyroRateAidPipeline):
     aid_width = MASTER_COLUMNS
     aid_kind = "master"
     checks_translation = False
+    handover_limit_key = "master_handover_sigma_deg"
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a, ad = self.config.alignment, self.config.aiding
@@ -140,8 +149,9 @@ class TransferPipeline(GyroRateAidPipeline):
         if not self.config.fine.enabled:
             return None
         ad = self.config.aiding
-        return ErrorStateFilter(self.grade, [GnssVelocity(ad.master_vel_std_mps, name="master_vel"),
-                                             MasterAttitude(ad.master_att_std_deg * DEG)], ad.gate_chi2)
+        velocity = (LeverVelocity(ad.master_vel_std_mps, lever_sigma_m=ad.master_lever_sigma_m, name="master_vel")
+                    if ad.master_lever_sigma_m > 0.0 else GnssVelocity(ad.master_vel_std_mps, name="master_vel"))
+        return ErrorStateFilter(self.grade, [velocity, MasterAttitude(ad.master_att_std_deg * DEG)], ad.gate_chi2)
 
     def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
         """The master's velocity with the slave's gyro rate, and its attitude quaternion."""

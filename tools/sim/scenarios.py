@@ -17,6 +17,7 @@ from sinsalign.service.align.sensor_model import SensorGrade
 from .imu import ImuErrors
 from .motion import AngleProfile, AngularMotion, Sinusoid
 from .parked import DrivenMotion, ParkedMotion, Signal, SmoothStep, parked_motion
+from .transfer_field import TRANSFER_SITE, poor_slave_errors, poor_slave_motion
 from .vehicle import MountedMotion, VehicleMotion
 
 
@@ -71,9 +72,11 @@ class Scenario:
     """Each seed draws the sign of every axis's bias (a population of IMUs with biases of the stated size)."""
     gnss: GnssSpec | None = None
     master: MasterSpec | None = None
-    motion_for_seed: Callable[[int], ParkedMotion] | None = None
+    motion_for_seed: Callable[[int], ParkedMotion | MountedMotion] | None = None
     """Draws each seed's motion (its own heading and events; a module-level function, so the scenario pickles);
     None: ``motion`` for every seed."""
+    errors_for_seed: Callable[[int], ImuErrors] | None = None
+    """Draws each seed's sensor errors (their magnitudes; the signs as ``random_bias_signs``); None: ``errors``."""
     states_datasheet: bool = True
     """The IMU log states ``grade`` as its datasheet; False: the log states none (the configured one serves)."""
     field_from_s: float | None = None
@@ -85,6 +88,8 @@ class Scenario:
         scenario = self
         if self.motion_for_seed is not None:
             scenario = replace(scenario, motion=self.motion_for_seed(seed), motion_for_seed=None)
+        if self.errors_for_seed is not None:
+            scenario = replace(scenario, errors=self.errors_for_seed(seed), errors_for_seed=None)
         if not scenario.random_bias_signs:
             return scenario
         signs = np.random.default_rng([seed, 5]).choice([-1.0, 1.0], size=(2, 3))
@@ -260,6 +265,19 @@ SCENARIOS["seed002"] = _scenario(
     SEED002_SITE, seed002_flight(), replace(_errors(10.0, 5000.0, gyro_arw_deg_rth=0.1),
                                             acc_vrw_ms_rts=50.0 * UG_TO_MS2),
     100.0, 60.0, ((10.0, 10.0), (60.0, 60.0)), random_bias_signs=True, master=MasterSpec())
+
+
+MEMS_GRADE = SensorGrade.from_datasheet(300.0, 0.5, 10000.0, 50.0)
+"""The poor slave's datasheet: the population's upper figures (300°/h, 0.5°/√h, 10 mg, 50 µg/√Hz)."""
+SCENARIOS["transfer-mems"] = replace(_scenario(
+    "transfer-mems", "transfer alignment of a MEMS slave in a road vehicle: L=31°, 100 Hz, 100 s; straight north "
+    "at 14 ± 2 m/s (a swing of 8–15 s period), rolled ±30° at 5–10°/s (per seed) over 30–75 s; slave mounted "
+    "12°/−4°/7° off the master at a lever arm of (0.4, 1.2, −0.3) m it does not know; slave gyro 100–300°/h bias "
+    "per axis + 0.1–0.5°/√h, acc 1–10 mg + 50 µg/√Hz (magnitudes and signs per seed), stating 300°/h, 0.5°/√h, "
+    "10 mg, 50 µg/√Hz; master at 10 Hz, attitude 0.15° (flexure, vibration) and velocity 0.1 m/s white noise",
+    TRANSFER_SITE, poor_slave_motion(0), poor_slave_errors(0), 100.0, 100.0, ((10.0, 30.0), (40.0, 100.0)),
+    random_bias_signs=True, master=MasterSpec(att_noise_deg=0.15, vel_noise_mps=0.1)),
+    grade=MEMS_GRADE, motion_for_seed=poor_slave_motion, errors_for_seed=poor_slave_errors)
 
 
 PARKED_SITE = Site(34.0 * DEG, 118.0 * DEG)
