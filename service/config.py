@@ -83,10 +83,11 @@ class AidingConfig:
     (master body axes, m; a master log's ``# lever_*_m`` keys override), its attitude and velocity
     noise (a log's ``att_std_deg`` / ``vel_std_mps`` override), and the switch from the large-angle
     phase to the Kalman stage: at ``master_handover_s`` if set (the seed's fixed 10 s), else once
-    phase 1's σ is at most ``master_handover_sigma_deg`` (the filter's linear range: phase 1 hands its
-    errors over with their correlations, so the filter need not wait for a precision a MEMS slave never
-    reaches). The Kalman stage estimates the lever arm as well, from the configured one with the 1-sigma
-    ``master_lever_sigma_m`` per axis (0: taken as known). A rough nominal
+    phase 1's σ is at most ``master_handover_sigma_deg``, or at most ``master_linear_sigma_deg`` (the
+    filter's linear range: phase 1 hands its errors over with their correlations) and no longer improving,
+    as with a MEMS slave that never reaches the first. The Kalman stage estimates the lever arm as
+    well, from the configured one with the 1-sigma ``master_lever_sigma_m`` per axis (0: taken as known).
+    A rough nominal
     mounting ``master_mount_deg`` (heading, pitch, roll of C_bs^bm; empty: none) with its 1-sigma
     ``master_mount_sigma_deg`` gives the slave an attitude until phase 1 has resolved the mounting.
     Coarse: the multistage window (s, bounded store of window / obs interval rows), its levels, how
@@ -118,7 +119,8 @@ class AidingConfig:
     master_att_std_deg: float = 0.001
     master_vel_std_mps: float = 0.005
     master_handover_s: float = 0.0
-    master_handover_sigma_deg: float = 5.0
+    master_handover_sigma_deg: float = 0.2
+    master_linear_sigma_deg: float = 5.0
     master_lever_sigma_m: float = 1.0
     window_s: float = 120.0
     levels: int = 10
@@ -301,6 +303,7 @@ def _check(config: Config) -> Config:
         ("aiding.master_handover_s", 0.0 <= ad.master_handover_s <= 3600.0, "must be in [0, 3600] (0: by σ)"),
         ("aiding.master_mount_sigma_deg", 0.0 < ad.master_mount_sigma_deg <= 180.0, "must be in (0, 180]"),
         ("aiding.master_lever_sigma_m", 0.0 <= ad.master_lever_sigma_m <= 1000.0, "must be in [0, 1000]"),
+        ("aiding.master_linear_sigma_deg", 0.0 < ad.master_linear_sigma_deg <= 30.0, "must be in (0, 30]"),
         ("aiding.master_handover_sigma_deg", ad.master_handover_sigma_deg > 0.0, "must be > 0"),
         ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
         ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),

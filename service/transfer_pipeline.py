@@ -5,8 +5,9 @@ Phase 1 (``coarse``) is the core's inertial-frame stage with the master source
 mounting M = C_bs^bm, whatever its size. Phase 2 (``fine`` → ``aligned``) is the same error-state
 Kalman filter as the other aided modes, with velocity matching (the master's velocity, a fix of the
 GNSS velocity's form) and attitude matching (:class:`~.align.kalman.MasterAttitude`, the mounting
-as extra states), from the first control step at which phase 1's σ is within
-``aiding.master_handover_sigma_deg`` (or at ``aiding.master_handover_s``, the seed's fixed 10 s).
+as extra states, and the lever arm), from the first control step at which phase 1's σ is within
+``aiding.master_handover_sigma_deg``, or within ``aiding.master_linear_sigma_deg`` (the filter's linear range)
+and no longer improving (a MEMS slave), or at ``aiding.master_handover_s`` (the seed's fixed 10 s).
 The slave's attitude is the output; :meth:`TransferPipeline.mounting` gives M with its σ.
 """
 from __future__ import annotations
@@ -38,6 +39,9 @@ seeds, phase 1 until 10 s): |heading error|/σ had 90th percentile 2.8 and maxim
 and 2.3."""
 LINEAR_LIMIT_DEG = 10.0
 """A phase-1 heading σ above this is reported as unknown: the covariance is a linearisation about the estimate."""
+PHASE1_STALL_S = 2.0
+"""Phase 1 has done what it can once its noise σ has not improved for this long (s): with a poor slave it bottoms
+out within seconds and then grows with the gyro drift."""
 HANDOVER_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one master epoch: its σ is this many times the stated noise."""
 
@@ -86,6 +90,19 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
         sigma = self.fit_sigma_rad()
         return sigma is not None and sigma <= LINEAR_LIMIT_DEG * DEG
 
+    _best_noise: tuple[float, float] = (np.inf, 0.0)
+
+    def done(self, noise_rad: float, elapsed_s: float, precise_rad: float, linear_rad: float) -> bool:
+        """Whether phase 1 has done what it can, given its noise σ now (rad, the larger of heading and level): within
+        ``precise_rad``, or within ``linear_rad`` (the Kalman stage's linear range, where it takes the errors over
+        with their correlations) and no better than :data:`PHASE1_STALL_S` ago. A good slave reaches the first; a
+        MEMS slave's σ bottoms out at degrees and then grows with its drift, and only the Kalman stage can estimate
+        the biases that cause it."""
+        if noise_rad < self._best_noise[0]:
+            self._best_noise = (noise_rad, elapsed_s)
+        return noise_rad <= precise_rad or (noise_rad <= linear_rad
+                                            and elapsed_s - self._best_noise[1] >= PHASE1_STALL_S)
+
     def best_mounting(self) -> tuple[np.ndarray, float | None]:
         """(C_bs^bm, its 1-sigma in rad if it is the nominal one): the fit's once resolved, else the nominal."""
         if self.nominal is not None and not self.resolved:
@@ -133,7 +150,7 @@ class TransferPipeline(GyroRateAidPipeline):
     aid_width = MASTER_COLUMNS
     aid_kind = "master"
     checks_translation = False
-    handover_limit_key = "master_handover_sigma_deg"
+    handover_limit_key = "master_linear_sigma_deg"
 
     def _make_coarse(self) -> InertialCoarseAlignment:
         a, ad = self.config.alignment, self.config.aiding
@@ -169,8 +186,8 @@ class TransferPipeline(GyroRateAidPipeline):
         if noise is None:
             return
         # the switch looks at the fit's noise alone (the bias floor stays until the Kalman stage separates it)
-        due = elapsed_s + 1e-9 >= ad.master_handover_s if ad.master_handover_s > 0.0 else (
-            max(noise) <= ad.master_handover_sigma_deg * DEG)
+        due = elapsed_s + 1e-9 >= ad.master_handover_s if ad.master_handover_s > 0.0 else self.coarse.done(
+            max(noise), elapsed_s, ad.master_handover_sigma_deg * DEG, ad.master_linear_sigma_deg * DEG)
         solution = self._handover_solution(t_end, q_b_b0, None) if due else None
         if solution is None:
             return
