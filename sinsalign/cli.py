@@ -141,7 +141,8 @@ AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot
                 "seed002": ("evaluate_transfer.seed002_table", "evaluate_transfer.plot_seed002"),
                 "seed004": ("evaluate_gnss.seed004_table", "evaluate_gnss.plot_seed004"),
                 "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
-                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates")}
+                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates"),
+                "transfer-mems": ("evaluate_transfer.handover_table", "evaluate_transfer.plot_handover")}
 """``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
 sinsalign.tools)."""
 
@@ -152,7 +153,7 @@ def _tool(name: str) -> Callable:
     return getattr(importlib.import_module(f"sinsalign.tools.{module}"), function)
 
 
-def _aided_table(name: str, seeds: range, out: Path, argv: list[str]) -> None:
+def _aided_table(name: str, seeds: range, out: Path, provenance: str) -> None:
     """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates and
     seed002-rates: slower GNSS receivers and master INS) and plots."""
     table, plot = (_tool(f) for f in AIDED_TABLES[name])
@@ -160,13 +161,13 @@ def _aided_table(name: str, seeds: range, out: Path, argv: list[str]) -> None:
     if name == "seed002":
         from sinsalign.tools.evaluate_transfer import phase1_comparison
         text += "\n\n" + phase1_comparison(seeds)
-    _write_table(name, text, out, plot(runs, out / f"{name}_heading.png"), argv)
+    _write_table(name, text, out, plot(runs, out / f"{name}_heading.png"), provenance)
 
 
-def _write_table(name: str, text: str, out: Path, png: Path, argv: list[str]) -> None:
-    """Print an eval's tables and save them as OUT/NAME.md, both stamped with the command line and the commit."""
-    from sinsalign.tools.stamp import stamp
-    text = f"{stamp(argv)}\n\n{text}"
+def _write_table(name: str, text: str, out: Path, png: Path, provenance: str) -> None:
+    """Print an eval's tables and save them as OUT/NAME.md, both headed by ``provenance`` (the command line and the
+    commit it started on)."""
+    text = f"{provenance}\n\n{text}"
     (out / f"{name}.md").write_text(text + "\n")
     print(text)
     print(f"\nplot: {png}\ntable: {out / f'{name}.md'}")
@@ -184,6 +185,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
         seed_set_table,
         solver_table,
     )
+    from sinsalign.tools.stamp import stamp
+    provenance = stamp(args.argv)   # the commit the runs start on
     seeds = range(args.first_seed, args.first_seed + args.seeds * args.seed_sets)
     out = Path(args.out_dir)
     overrides = _overrides(args)
@@ -195,7 +198,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
                           "(sinsalign sim --list)")
     out.mkdir(parents=True, exist_ok=True)
     if aided:
-        _aided_table(args.scenario, seeds, out, args.argv)
+        _aided_table(args.scenario, seeds, out, provenance)
         return 0
     runs = monte_carlo(args.scenario, seeds, config.as_dict())
     text = scenario_table(args.scenario, runs)
@@ -213,7 +216,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         text += "\n\n" + table
         others = {k: v for k, v in all_runs.items() if k != "OPREQ"}
     _write_table(args.scenario, text, out, plot_heading(args.scenario, runs, out / f"{args.scenario}_heading.png",
-                                                        others), args.argv)
+                                                        others), provenance)
     return 0
 
 

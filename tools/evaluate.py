@@ -49,6 +49,8 @@ class RunResult:
     counters: dict[str, int] | None = None
     mount_error_deg: np.ndarray | None = None
     """Transfer alignment: the final mounting estimate's error (3,) deg, in the master's axes."""
+    mount_phi_deg: np.ndarray | None = None
+    """Transfer alignment: per output epoch the reported mounting's error (N, 3) deg, in the master's axes."""
     phases: tuple[str, ...] = ()
     """The output phases in the order they appeared (a phase that comes back counts again)."""
     disturbed: np.ndarray | None = None
@@ -108,14 +110,15 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     t = np.array([r.t for r in records])
     C_est = dcm_from_quat(np.array([r.q for r in records]))
     phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
-    mount_error = None
+    mount_error = mount_phi = None
     if scenario.master is not None:
         mount_error = misalignment(pipeline.mounting()[0], scenario.motion.mounting) / DEG
+        mount_phi = misalignment(dcm_from_quat(np.array([r.mount_q for r in records])), scenario.motion.mounting) / DEG
     phases = tuple(r.phase for i, r in enumerate(records) if i == 0 or records[i - 1].phase != r.phase)
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),
                      np.array([r.level_sigma_deg for r in records]), np.array([r.converged for r in records]),
-                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error, phases,
-                     np.array([r.phase == "disturbed" for r in records]))
+                     run_limit_deg(scenario, t), pipeline.disturbances, counters, mount_error, mount_phi_deg=mount_phi,
+                     phases=phases, disturbed=np.array([r.phase == "disturbed" for r in records]))
 
 
 def _run_task(args: tuple[str, int, dict, float | None, float | None, str | None, dict]) -> RunResult:

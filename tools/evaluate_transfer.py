@@ -12,7 +12,7 @@ mounting and on 60°/−45°/120°.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import replace
 from pathlib import Path
 
@@ -59,6 +59,12 @@ def rms_at(runs: Sequence[RunResult], t_s: float) -> np.ndarray:
     return np.sqrt(np.mean([r.phi_deg[k] ** 2 for r in runs], axis=0))
 
 
+def worst_at(runs: Sequence[RunResult], t_s: float) -> float:
+    """The largest |φ| (deg) of any axis over the runs at the epoch nearest ``t_s``."""
+    k = nearest_epoch(runs, t_s)
+    return max(float(np.abs(r.phi_deg[k]).max()) for r in runs)
+
+
 def converged_beyond_3sigma_any_axis(runs: Sequence[RunResult]) -> int:
     """Epochs, over all runs and the whole run, flagged converged with the heading error beyond 3 heading σ or a
     level error beyond 3 level σ."""
@@ -74,8 +80,8 @@ def _axes(v: np.ndarray) -> str:
 def seed002_table(seeds: Sequence[int], progress: bool = True) -> tuple[str, dict[str, list[RunResult]]]:
     """The seed-002 table in Markdown and the runs of each variant."""
     lines = [f"seed 002 transfer alignment, {len(seeds)} seeds (RMS over seeds, deg, φ_E / φ_N / φ_U)", "",
-             "| variant | slave @10 s | slave @60 s | mounting @60 s | in 2σ from 10 s (heading) | "
-             "converged > 3σ (any axis, any time) |", "|---|---|---|---|---|---|"]
+             "| variant | slave @10 s | worst seed @10 s (any axis) | slave @60 s | mounting @60 s | "
+             "in 2σ from 10 s (heading) | converged > 3σ (any axis, any time) |", "|---|---|---|---|---|---|---|"]
     all_runs: dict[str, list[RunResult]] = {}
     for label, overrides, faults in VARIANTS:
         runs = monte_carlo(SCENARIO, seeds, overrides, progress=progress, label=label, aid_faults=faults)
@@ -83,7 +89,8 @@ def seed002_table(seeds: Sequence[int], progress: bool = True) -> tuple[str, dic
         honest = fine_honesty(runs, HONEST_FROM_S)
         beyond = converged_beyond_3sigma_any_axis(runs)
         mounting = np.sqrt(np.mean([r.mount_error_deg**2 for r in runs], axis=0))
-        lines.append(f"| {label} | {_axes(rms_at(runs, AT_S[0]))} | {_axes(rms_at(runs, AT_S[1]))} | "
+        worst = worst_at(runs, AT_S[0])
+        lines.append(f"| {label} | {_axes(rms_at(runs, AT_S[0]))} | {worst:.4f} | {_axes(rms_at(runs, AT_S[1]))} | "
                      f"{_axes(mounting)} | {100 * honest.inside_2sigma:.1f} % | {beyond} |")
     counters = summed_counters(all_runs[FAULTS_LABEL])
     lines += ["", f"{FAULTS_LABEL}: no master epochs {DROPOUT_S[0]:g}–{DROPOUT_S[1]:g} s, "
@@ -222,3 +229,79 @@ def phase1_comparison(seeds: Sequence[int], progress: bool = True) -> str:
               "truth, go into the accelerometer bias (metres per s² after one update): the filter settles on a "
               "wrong attitude with a σ of thousandths of a degree."]
     return "\n".join(lines)
+
+
+MEMS_SCENARIO = "transfer-mems"
+EARLY_S = (5.0, 30.0)
+"""Straight driving: the mount's yaw only from the speed's changes."""
+LATE_FROM_S = 40.0
+"""Ten seconds into the rolls."""
+SETTLED_FROM_S = 76.0
+"""After the rolls."""
+HANDOVER_VARIANTS: tuple[tuple[str, dict], ...] = (
+    ("default: phase 1 to 0.2°, or stalled within 5°; lever arm estimated", {}),
+    ("phase 1 until 0.2° only", {"aiding": {"master_linear_sigma_deg": 0.2}}),
+    ("lever arm taken as configured (0)", {"aiding": {"master_lever_sigma_m": 0.0}}),
+)
+"""(label, configuration overrides) of the hand-over table, each on the good and the poor slave."""
+
+
+def _heading(r: RunResult) -> np.ndarray:
+    return r.phi_deg[:, 2]
+
+
+def _every_axis(r: RunResult) -> np.ndarray:
+    return np.abs(r.phi_deg).max(axis=1)
+
+
+def _mounting(r: RunResult) -> np.ndarray:
+    return np.abs(r.mount_phi_deg).max(axis=1)
+
+
+def _worst(runs: Sequence[RunResult], values: Callable[[RunResult], np.ndarray], mask: Callable[[RunResult], np.ndarray]
+           ) -> float | None:
+    """The largest |value| over the runs' epochs where ``mask``; None if no epoch is in it."""
+    picked = [np.abs(values(r)[mask(r)]) for r in runs]
+    picked = [p for p in picked if p.size]
+    return float(max(p.max() for p in picked)) if picked else None
+
+
+def _cell(value: float | None, digits: int = 3) -> str:
+    return "—" if value is None else f"{value:.{digits}f}"
+
+
+def handover_row(label: str, runs: Sequence[RunResult]) -> str:
+    """One row of :func:`handover_table`: worst heading while driving straight and from 10 s into the rolls, worst
+    axis at 10 s and after the rolls, worst mounting after the rolls, RMS at the end, σ honesty."""
+    end = runs[0].t[-1]
+    at_10 = worst_at(runs, AT_S[0])
+    honest = fine_honesty(runs, HONEST_FROM_S)
+    return (f"| {label} | {_cell(_worst(runs, _heading, lambda r: (r.t >= EARLY_S[0]) & (r.t <= EARLY_S[1])), 2)} | "
+            f"{_cell(_worst(runs, _heading, lambda r: r.t >= LATE_FROM_S))} | {at_10:.3f} | "
+            f"{_cell(_worst(runs, _every_axis, lambda r: r.t > SETTLED_FROM_S))} | "
+            f"{_cell(_worst(runs, _mounting, lambda r: r.t > SETTLED_FROM_S))} | {_axes(rms_at(runs, end))} | "
+            f"{100 * honest.inside_2sigma:.1f} % | {converged_beyond_3sigma_any_axis(runs)} |")
+
+
+def handover_table(seeds: Sequence[int], progress: bool = True) -> tuple[str, dict[str, list[RunResult]]]:
+    """The hand-over table in Markdown: each variant on the poor slave (``transfer-mems``) and the good one
+    (seed 002), worst over the seeds; and the runs by variant."""
+    lines = [f"transfer alignment, good and poor slave, {len(seeds)} seeds (worst over the seeds and epochs, deg; "
+             "RMS at the end per axis φ_E / φ_N / φ_U)", "",
+             f"| scenario, variant | heading {EARLY_S[0]:g}–{EARLY_S[1]:g} s | heading from {LATE_FROM_S:g} s | "
+             f"any axis at 10 s | any axis after {SETTLED_FROM_S:g} s | mounting after {SETTLED_FROM_S:g} s | "
+             "RMS at the end | heading in 2σ from 10 s | converged > 3σ (any axis) |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    all_runs: dict[str, list[RunResult]] = {}
+    for name in (MEMS_SCENARIO, SCENARIO):
+        for label, overrides in HANDOVER_VARIANTS:
+            runs = monte_carlo(name, seeds, overrides, progress=progress, label=label)
+            all_runs[f"{name}: {label}"] = runs
+            lines.append(handover_row(f"`{name}`: {label}", runs))
+    return "\n".join(lines), all_runs
+
+
+def plot_handover(runs_by_variant: dict[str, list[RunResult]], path: str | Path) -> Path:
+    """:func:`plot_heading_runs` of the poor slave's variants."""
+    mems = {k: v for k, v in runs_by_variant.items() if k.startswith(MEMS_SCENARIO)}
+    return plot_heading_runs(mems, path, HONEST_FROM_S)

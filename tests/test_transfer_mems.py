@@ -1,0 +1,66 @@
+"""Transfer alignment of a MEMS slave against a master whose attitude carries flexure and vibration.
+
+GIVEN the ``transfer-mems`` scenario (a 100-300°/h, 1-10 mg slave stating its grade, a master at 0.15° and
+0.1 m/s, a lever arm the slave does not know, straight driving then ±30° rolls), THEN phase 1 hands over inside
+the filter's linear range, the Kalman stage estimates the biases and the lever arm, the heading is within 0.15°
+from 40 s, every axis within 0.1° and the mounting within 0.12° after the rolls, and nothing is converged beyond
+3σ. Two seeds by default, 20 under ``-m slow``.
+"""
+import numpy as np
+import pytest
+from sinsalign.tools.evaluate import monte_carlo
+from sinsalign.tools.evaluate_aided import fine_honesty
+from sinsalign.tools.evaluate_transfer import (
+    EARLY_S,
+    LATE_FROM_S,
+    SETTLED_FROM_S,
+    converged_beyond_3sigma_any_axis,
+    rms_at,
+    worst_at,
+)
+
+
+def assert_poor_slave(runs) -> None:
+    for r in runs:
+        assert r.phases == ("coarse", "fine", "aligned"), r.phases
+        assert np.abs(r.phi_deg[r.t >= LATE_FROM_S, 2]).max() <= 0.15
+        settled = r.t > SETTLED_FROM_S
+        assert np.abs(r.phi_deg[settled]).max() <= 0.1
+        assert np.abs(r.mount_phi_deg[settled]).max() <= 0.12
+    assert converged_beyond_3sigma_any_axis(runs) == 0
+    assert fine_honesty(runs, 10.0).inside_2sigma >= 0.9
+
+
+def test_a_mems_slave_hands_over_and_aligns_within_a_tenth_of_a_degree():
+    assert_poor_slave(monte_carlo("transfer-mems", [0, 1], progress=False))
+
+
+def test_without_the_lever_arm_states_the_unknown_lever_arm_tilts_the_estimate():
+    """The test above can fail: the same seeds with the lever arm taken as configured (zero) miss the level."""
+    runs = monte_carlo("transfer-mems", [0, 1], {"aiding": {"master_lever_sigma_m": 0.0}}, progress=False)
+    assert max(np.abs(r.phi_deg[r.t > SETTLED_FROM_S]).max() for r in runs) > 0.1
+
+
+@pytest.mark.slow
+def test_a_mems_slave_on_20_seeds():
+    assert_poor_slave(monte_carlo("transfer-mems", range(20), progress=False))
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="in the first seconds of straight driving the mount's yaw rests on a "
+                   "few m/s of speed change: 6-17° at 5 s on 6 of 20 seeds (σ says so), within 3.5° from 10 s")
+def test_a_mems_slave_keeps_the_heading_within_5_degrees_while_driving_straight():
+    runs = monte_carlo("transfer-mems", range(20), progress=False)
+    early = runs[0].t >= EARLY_S[0]
+    early &= runs[0].t <= EARLY_S[1]
+    assert max(np.abs(r.phi_deg[early, 2]).max() for r in runs) <= 5.0
+
+
+@pytest.mark.slow
+def test_the_good_slave_keeps_its_figures_with_the_early_hand_over_on_100_seeds():
+    """Seed 002 (a 10°/h slave, a 0.001° master): every axis within 0.1° at 10 s on each of 100 seeds, RMS at 60 s
+    within 0.005° per axis, the heading inside 2σ from 10 s 90 % of the time."""
+    runs = monte_carlo("seed002", range(100), progress=False)
+    assert worst_at(runs, 10.0) <= 0.1
+    assert rms_at(runs, 60.0).max() <= 0.005
+    assert fine_honesty(runs, 10.0).inside_2sigma >= 0.9
