@@ -5,6 +5,7 @@ to the compass loops (or the loops start alone from 0.1°/0.1°/1.5° errors), T
 level settle on the physical limit (alignment-math.md §3.3), the stored-data passes shorten the
 settling, σ stays honest, and the live (sliced) and offline paths give the same bits.
 """
+import functools
 import math
 
 import numpy as np
@@ -83,9 +84,15 @@ def test_noise_free_stored_passes_converge_where_plain_forward_running_has_not()
     assert np.abs(stored.phi_deg[at[81.0]:, :2]).max() < 1e-4
 
 
+@functools.cache
+def default_runs(name: str) -> list:
+    """The default pipeline's 20 seeds of ``name`` (run once for the tests that read them)."""
+    return monte_carlo(name, SEEDS, progress=False)
+
+
 @pytest.mark.parametrize("name", ["seed001-static", "seed001-swing"])
 def test_opreq_then_compass_sits_on_the_physical_limit(name):
-    runs = monte_carlo(name, SEEDS, progress=False)
+    runs = default_runs(name)
     s = window_stats(runs, (550, 600))
     assert abs(s.heading_mean) <= 0.005
     assert s.heading_seed_std <= 0.002
@@ -100,7 +107,7 @@ def test_the_output_takes_heading_and_level_from_whichever_stage_claims_the_smal
     """The coarse stage runs on beside the loops: the output's heading is never worse than OPREQ alone on the same
     seeds, and its level is the loops' (OPREQ alone lets the north level drift by ε·T, about −0.0007° at 600 s)."""
     seeds = range(8)
-    default = monte_carlo("seed001-swing", seeds, progress=False)
+    default = default_runs("seed001-swing")[:len(seeds)]
     coarse = monte_carlo("seed001-swing", seeds, COARSE_ONLY, progress=False)
     for window in ((101, 200), (550, 600)):
         d, c = window_stats(default, window), window_stats(coarse, window)

@@ -205,7 +205,7 @@ def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_o
     """IMU frames on the pty, the odometer on …/aid/odo two seconds of data behind: the samples wait for
     their aiding, and the records equal the offline replay of the recording with the odometer log."""
     scenario = get_scenario("seed003-20").for_seed(1)
-    seconds, speed = 125.0, 25.0   # the default 120-s window, then the Kalman stage
+    seconds, speed = 125.0, 10.0   # the default 120-s window, then the Kalman stage
     chunk = simulated_run(scenario, seconds)
     epochs = odometer_epochs(scenario, 1)[:round(seconds * 100)]
     run = running(**daemon_sections(scenario), aiding={"inputs": ["odo"], "max_wait_s": 10.0})
