@@ -160,7 +160,7 @@ def test_each_seed_draws_its_own_car_the_same_every_time():
     assert get_scenario("parked-nodatasheet").for_seed(3).motion == one.motion      # the same data
 
 
-@pytest.mark.parametrize("name, stated", [("parked", (0.01, 0.001, 50.0, 5.0)),
+@pytest.mark.parametrize("name, stated", [("parked", (0.01, 0.0005, 50.0, 5.0)),
                                           ("parked-tactical", (1.0, 0.05, 300.0, 50.0)),
                                           ("parked-nodatasheet", None)])
 def test_the_parked_logs_state_their_datasheet_or_none(tmp_path, name, stated):

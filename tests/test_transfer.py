@@ -129,28 +129,14 @@ def test_a_master_stream_that_stops_repeats_and_comes_late_is_counted_and_surviv
     assert np.abs(phi[-1]).max() < 0.01 and records[-1].phase == "aligned"
 
 
-def assert_same_records(a, b) -> None:
-    """The same records to rounding: phases and flags equal, every number within 1e-9 (relative) of the other.
-    On some CPUs the live path's phase-1 sums differ from one chunk's in the last bits (1e-11 of the mounting's
-    quaternion); the records must not differ beyond that."""
-    assert len(a) == len(b)
-    for x, y in zip(a, b, strict=True):
-        dx, dy = x.wire_dict(), y.wire_dict()
-        assert dx.keys() == dy.keys()
-        for key, value in dx.items():
-            if isinstance(value, float | int | list) and not isinstance(value, bool):
-                np.testing.assert_allclose(np.asarray(value, dtype=float), np.asarray(dy[key], dtype=float),
-                                           rtol=1e-9, atol=1e-12, err_msg=key)
-            else:
-                assert value == dy[key], key
-
-
-def test_a_stream_one_sample_at_a_time_gives_the_same_records_as_one_chunk():
+def test_a_stream_one_sample_at_a_time_gives_the_same_bits_as_one_chunk():
+    """Phase 1's pairs come from row-wise products (a BLAS product's last bits depend on how many rows it has,
+    on some CPUs), so a sample at a time gives the bits of one chunk."""
     scenario = replace(get_scenario("seed002"), duration_s=4.0)
     whole, _ = run_transfer(scenario)
     pieces, _ = run_transfer(scenario, piece=1)
     assert len(whole) == 4 and whole[-1].phase in ("fine", "aligned")
-    assert_same_records(whole, pieces)
+    assert [r.to_json() for r in whole] == [r.to_json() for r in pieces]
 
 
 def test_phase_1_records_inside_a_control_step_are_the_same_live_as_in_one_chunk():
@@ -161,8 +147,7 @@ def test_phase_1_records_inside_a_control_step_are_the_same_live_as_in_one_chunk
     overrides = {"fine": {"enabled": False, "control_interval_s": 0.5}, "output": {"period_s": 0.2}}
     whole, _ = run_transfer(scenario, overrides=overrides)
     pieces, _ = run_transfer(scenario, overrides=overrides, piece=7)
-    assert len(whole) == 30
-    assert_same_records(whole, pieces)
+    assert len(whole) == 30 and [r.to_json() for r in whole] == [r.to_json() for r in pieces]
 
 
 def test_a_master_log_replays_with_the_noise_it_states(tmp_path):

@@ -91,8 +91,10 @@ class MasterSource:
             self._P_first, self._S_first = P[0].copy(), S[0].copy()
         b_a = rotvec_from_quat(quat_from_dcm(self._S_first.T @ S))
         r_a = rotvec_from_quat(quat_from_dcm(self._P_first.T @ P))
-        b = np.stack((b_v @ self._S_first, b_a), axis=1).reshape(-1, 3)      # rows: S_fᵀ b_v
-        r = np.stack((r_v @ self._P_first, r_a), axis=1).reshape(-1, 3)
+        # rows: S_fᵀ b_v. einsum, not a BLAS product, whose last bits depend on how many rows a call has: the
+        # pairs must be the same bits live (a few rows a call) as in one chunk
+        b = np.stack((np.einsum("ij,jk->ik", b_v, self._S_first), b_a), axis=1).reshape(-1, 3)
+        r = np.stack((np.einsum("ij,jk->ik", r_v, self._P_first), r_a), axis=1).reshape(-1, 3)
         return b, r
 
     def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
