@@ -354,11 +354,17 @@ class GnssVelocity(AntennaMeasurement):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        lever_velocity = antenna_lever_velocity(nav.C_b_n, value[3:6], nav.position[0], self.lever_b)
+        innovation, H_core, R = self.point_velocity(nav, value, self.lever_b)
+        return innovation, H_core, np.zeros((3, 0)), R
+
+    def point_velocity(self, nav: Navigation, value: np.ndarray, lever_b: np.ndarray
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(innovation, H_core, R) of the velocity of the point at ``lever_b`` (body axes, m)."""
+        lever_velocity = antenna_lever_velocity(nav.C_b_n, value[3:6], nav.position[0], lever_b)
         H_core = np.zeros((3, CORE_STATES))
         H_core[:, PHI] = -skew(lever_velocity)
         H_core[:, DV] = -np.eye(3)
-        return value[:3] - nav.V_n - lever_velocity, H_core, np.zeros((3, 0)), np.eye(3) * self.std**2
+        return value[:3] - nav.V_n - lever_velocity, H_core, np.eye(3) * self.std**2
 
 
 class LeverVelocity(GnssVelocity):
@@ -379,13 +385,9 @@ class LeverVelocity(GnssVelocity):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        lever_velocity = antenna_lever_velocity(nav.C_b_n, value[3:6], nav.position[0], extra)
+        innovation, H_core, R = self.point_velocity(nav, value, extra)
         omega_eb_b = value[3:6] - nav.C_b_n.T @ earth_rate_n(nav.position[0])
-        H_core = np.zeros((3, CORE_STATES))
-        H_core[:, PHI] = -skew(lever_velocity)
-        H_core[:, DV] = -np.eye(3)
-        return (value[:3] - nav.V_n - lever_velocity, H_core, nav.C_b_n @ skew(omega_eb_b),
-                np.eye(3) * self.std**2)
+        return innovation, H_core, nav.C_b_n @ skew(omega_eb_b), R
 
 
 class GnssPosition(AntennaMeasurement):
