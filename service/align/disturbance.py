@@ -119,9 +119,9 @@ class MotionMonitor:
             speed, _ = self._gained(self._C[oldest], elapsed_s, alpha_b0, beta, self._alpha[oldest],
                                     self._beta[oldest])
             self.window_speed_mps = speed
-            heading_moved = abs(misalignment(C_b0_n0, self._C[oldest])[2])
+            # the heading's move over the window only once the velocity asks (a check every control step)
             self.suspect = speed > SUSPECT_FRACTION * self.threshold_mps and (
-                heading_moved > SUSPECT_SIGMAS * heading_sigma_rad)
+                abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * heading_sigma_rad)
             if speed <= self.threshold_mps:
                 return None
             self.episode = MotionEpisode(float(self._elapsed[oldest]), self._alpha[oldest].copy(),
