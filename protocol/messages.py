@@ -20,6 +20,7 @@ from typing import Any
 
 import msgpack
 
+from .plausibility import aiding_problem
 from .results import ResultRecord
 
 VERSION = 1
@@ -166,7 +167,8 @@ def aiding_message(sample: AidingSample) -> dict[str, Any]:
 
 
 def decode_aiding(kind: str, data: bytes) -> AidingSample:
-    """An aiding message of ``kind`` (the last chunk of its key), checked against the kind's fields."""
+    """An aiding message of ``kind`` (the last chunk of its key), checked against the kind's fields and what such a
+    source can physically report (:func:`~.plausibility.aiding_problem`)."""
     if kind not in AIDING_FIELDS:
         raise MessageError(f"unknown aiding kind {kind!r} (known: {', '.join(AIDING_FIELDS)})")
     m = unpack_map(data)
@@ -179,6 +181,9 @@ def decode_aiding(kind: str, data: bytes) -> AidingSample:
         if not isinstance(value, list) or len(value) != count:
             raise MessageError(f"{name}: expected a list of {count} numbers")
         values[name] = tuple(_number({name: v}, name) for v in value)
+    problem = aiding_problem(kind, values)
+    if problem is not None:
+        raise MessageError(f"aiding {kind}: {problem}")
     return AidingSample(kind, _integer(m, "seq", 0, 2**32 - 1), _number(m, "t"), values)
 
 

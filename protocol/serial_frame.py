@@ -41,6 +41,7 @@ import numpy as np
 
 from .counters import Counters
 from .messages import AIDING_FIELDS, AidingSample, MessageError
+from .plausibility import aiding_problem
 from .sequence import SequenceTracker
 
 SYNC = b"\xaa\x55"
@@ -170,7 +171,8 @@ def decode_aiding(frame: Frame) -> AidingSample:
     """The aiding epoch of a type-2 frame: kind, seq, t (s, IMU clock) and the kind's fields.
 
     Raises :class:`AidingPayloadError` (a :class:`~.messages.MessageError`) for an empty payload,
-    an unknown kind code, a length that does not fit the kind, or a non-finite value.
+    an unknown kind code, a length that does not fit the kind, a non-finite value or a physically impossible one
+    (:func:`~.plausibility.aiding_problem`).
     """
     payload = frame.payload
     if not payload:
@@ -191,6 +193,9 @@ def decode_aiding(frame: Frame) -> AidingSample:
         at += count
         if not all(math.isfinite(v) for v in values[name]):
             raise AidingPayloadError(f"aiding {kind}: {name} not finite {values[name]}")
+    problem = aiding_problem(kind, values)
+    if problem is not None:
+        raise AidingPayloadError(f"aiding {kind}: {problem}")
     return AidingSample(kind, frame.seq, frame.time_ns * 1e-9, values)
 
 

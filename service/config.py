@@ -170,9 +170,13 @@ class SiteConfig:
 
 @dataclass(frozen=True, slots=True)
 class ImuConfig:
-    """The live IMU: nominal sample rate (a log states its own)."""
+    """The live IMU: nominal sample rate (a log states its own) and its measurement ranges: an increment beyond
+    range × interval (twice, for the interval's jitter) cannot come from the sensor and is dropped as a bad sample.
+    The defaults cover MEMS and tactical units (2000°/s, 100 g); set the datasheet's."""
 
     rate_hz: float = 200.0
+    gyro_range_deg_s: float = 2000.0
+    acc_range_g: float = 100.0
 
 
 @dataclass(frozen=True, slots=True)
@@ -284,6 +288,8 @@ def _check(config: Config) -> Config:
         ("fine.live_pass_steps", f.live_pass_steps >= 1, "must be ≥ 1"),
         ("site.lat_deg", -90.0 < config.site.lat_deg < 90.0, "must be in (-90, 90) (gyrocompassing needs Ω cos L)"),
         ("imu.rate_hz", 0.0 < config.imu.rate_hz <= 10000.0, "must be in (0, 10000]"),
+        ("imu.gyro_range_deg_s", 0.0 < config.imu.gyro_range_deg_s <= 1e5, "must be in (0, 100000]"),
+        ("imu.acc_range_g", 0.0 < config.imu.acc_range_g <= 1e4, "must be in (0, 10000]"),
         ("serial.baud", 0 < config.serial.baud <= 16_000_000, "must be in 1..16000000"),
         ("serial.reconnect_max_s", config.serial.reconnect_max_s > 0.0, "must be > 0"),
         ("daemon.status_period_s", config.daemon.status_period_s > 0.0, "must be > 0"),

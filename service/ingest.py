@@ -20,7 +20,7 @@ from ..protocol.results import ResultRecord
 from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
 from .aided_pipeline import build_pipeline
 from .aiding import AidingTrack, AidingWait
-from .align.conventions import DEG
+from .align.conventions import DEG, G_TO_MS2
 from .align.earth import Site
 from .config import Config
 from .pipeline import AlignmentPipeline
@@ -28,6 +28,26 @@ from .sample_gate import Sample, SampleGate
 
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
+
+
+RANGE_MARGIN = 2.0
+"""An increment may span up to twice the nominal interval (a sensor's clock jitter) at full range."""
+
+
+def gate_for(config: Config) -> SampleGate:
+    """The sample gate of the configured IMU: its rate, the daemon's bridging, and the increments its ranges allow."""
+    interval_s = RANGE_MARGIN / config.imu.rate_hz
+    return SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples,
+                      max_dtheta_rad=config.imu.gyro_range_deg_s * DEG * interval_s,
+                      max_dv_mps=config.imu.acc_range_g * G_TO_MS2 * interval_s)
+
+
+def finite_record(record: ResultRecord) -> bool:
+    """Every number of ``record`` is finite (trace_P excepted: infinite before the first observation)."""
+    numbers = (record.t, *record.q, record.pitch_deg, record.roll_deg, record.heading_deg, record.heading_sigma_deg,
+               record.level_sigma_deg, record.rho, *(record.mount_q or ()),
+               0.0 if record.mount_sigma_deg is None else record.mount_sigma_deg)
+    return bool(np.isfinite(numbers).all())
 
 
 def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
@@ -50,6 +70,7 @@ class SampleCounters(Counters):
     inbox_overflow: int = 0
     records_published: int = 0
     internal_errors: int = 0
+    estimator_restarts: int = 0     # a pipeline step that raised or put out a non-finite record: started over
 
 
 class Ingest:
@@ -69,7 +90,7 @@ class Ingest:
         # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
         self._wait = (AidingWait(self.tracks[self.pipeline.aid_kind], ad.max_wait_s) if self.pipeline.aid_width
                       else None)
-        self.gate = SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples)
+        self.gate = gate_for(config)
         self.decoder = FrameDecoder()
         self.counters = SampleCounters()
         # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival order, not yet
@@ -173,13 +194,30 @@ class Ingest:
     def _feed(self, rows: np.ndarray | None, everything: bool = False) -> list[ResultRecord]:
         """Samples (N, 7) into the pipeline; in the aided mode they wait for their aiding first."""
         if self._wait is None:
-            return [] if rows is None else self.pipeline.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+            return [] if rows is None else self._process(rows, None)
         if rows is not None:
             self._wait.push(rows)
         ready, aid = self._wait.release(everything)
         if len(ready) == 0:
             return []
-        return self.pipeline.process(ready[:, 0], ready[:, 1:4], ready[:, 4:7], aid)
+        return self._process(ready, aid)
+
+    def _process(self, rows: np.ndarray, aid: np.ndarray | None) -> list[ResultRecord]:
+        """The pipeline's records of ``rows`` (N, 7) with their aiding. An estimator that fails on them (raises, or
+        puts out a non-finite number) starts over from the next samples: its state cannot be trusted, and a
+        service that published nothing after one bad step would be down for good."""
+        try:
+            records = self.pipeline.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7], aid)
+            if all(finite_record(r) for r in records):
+                return records
+            failure = "a non-finite attitude or σ"
+        except Exception as exc:   # whatever the estimator raised, the service goes on
+            failure = f"{type(exc).__name__}: {str(exc)[:80]}"
+        self.counters.estimator_restarts += 1
+        self._report(f"alignment failed on the samples t = {rows[0, 0]:.6f}..{rows[-1, 0]:.6f} s ({failure}): "
+                     "restarted")
+        self._restart_pipeline()
+        return []
 
     # ---- state --------------------------------------------------------------------------
     def all_counters(self) -> dict[str, int]:

@@ -3,7 +3,12 @@
 The strapdown integration needs every increment: a lost sample removes a slice of rotation and
 velocity from the integrals, and a clipped one puts a wrong one in. So, per decoded sample:
 
-- time not after the previous sample → dropped (``time_not_increasing``);
+- an increment beyond what the sensor can measure (|Δθ| or |Δv| above ``max_dtheta_rad`` / ``max_dv_mps``, its
+  stated range over twice the sample interval) → dropped like a bad frame (``implausible``), and bridged as a
+  missing sample; a finite 1e308 would otherwise reach the estimators;
+- time not after the previous sample → dropped (``time_not_increasing``); but once ``max_bridge_samples`` + 1
+  samples in a row are behind the last one and run on among themselves, the IMU's clock has gone back (a sensor
+  restarted, or the last sample's time was wild): the alignment restarts from them (``clock_resets``);
 - a gap of up to ``max_bridge_samples`` missing samples (from the time stamps) → the missing
   increments are interpolated linearly between the samples on either side (``samples_bridged``);
   the error is second order in the gap length on a smooth motion;
@@ -32,7 +37,8 @@ class GateCounters(Counters):
     restarts: int = 0
     saturated: int = 0
     status_flagged: int = 0
-
+    implausible: int = 0
+    clock_resets: int = 0
 
 
 @dataclass(slots=True)
@@ -51,10 +57,13 @@ class SampleGate:
 
     rate_hz: float
     max_bridge_samples: int = 5
+    max_dtheta_rad: float = np.inf
+    max_dv_mps: float = np.inf
     counters: GateCounters = field(default_factory=GateCounters)
     last_error: str | None = None
     _last: np.ndarray | None = None     # the last row admitted: t (s), Δθ (rad), Δv (m/s)
     _restart_reason: str | None = None   # a cut no segment has carried yet: why the next segment restarts
+    _behind: list[np.ndarray] = field(default_factory=list)   # samples in a row behind _last, in time order
 
     def admit(self, samples: Iterable[Sample]) -> list[Segment]:
         """Decoded samples in arrival order → segments to align; a segment carries the restart of every cut since the
@@ -64,10 +73,19 @@ class SampleGate:
         rows: list[np.ndarray] = []
         for t, dtheta, dv, status, saturated in samples:
             row = np.array((t, *dtheta, *dv), dtype=float)
-            if self._last is not None and not t > self._last[0]:
-                self.counters.time_not_increasing += 1
-                self.last_error = f"sample at t = {t:.6f} s does not follow t = {self._last[0]:.6f} s: dropped"
+            # a frame flagged saturated is the sensor at full scale (a restart, below); beyond it, no sensor's value
+            if not saturated and (np.abs(row[1:4]).max() > self.max_dtheta_rad
+                                  or np.abs(row[4:7]).max() > self.max_dv_mps):
+                self.counters.implausible += 1
+                self.last_error = (f"sample at t = {t:.6f} s beyond the IMU's range (|Δθ| {np.abs(row[1:4]).max():.3g} "
+                                   f"rad, |Δv| {np.abs(row[4:7]).max():.3g} m/s): dropped")
                 continue
+            if self._last is not None and not t > self._last[0]:
+                if not self._hold_behind(row):
+                    continue
+                rows = self._clock_reset(segments, rows)
+                continue
+            self._drop_behind()
             if status:
                 self.counters.status_flagged += 1
             if saturated:
@@ -86,6 +104,31 @@ class SampleGate:
             self._last = row
         self._close(segments, rows)
         return segments
+
+    def _hold_behind(self, row: np.ndarray) -> bool:
+        """Hold a sample that does not follow the last admitted one; True once the held ones show a clock that went
+        back (enough of them, running on)."""
+        if self._behind and not row[0] > self._behind[-1][0]:
+            self._drop_behind()
+        self._behind.append(row)
+        return len(self._behind) > self.max_bridge_samples
+
+    def _drop_behind(self) -> None:
+        """The held samples were strays (a repeat, one out of order): dropped, counted."""
+        if self._behind:
+            self.counters.time_not_increasing += len(self._behind)
+            self.last_error = (f"{len(self._behind)} sample(s) from t = {self._behind[0][0]:.6f} s did not follow the "
+                               "sample before: dropped")
+            self._behind = []
+
+    def _clock_reset(self, segments: list[Segment], rows: list[np.ndarray]) -> list[np.ndarray]:
+        """The clock went back: cut, and the held samples begin the next segment (its rows, returned)."""
+        self.counters.clock_resets += 1
+        self._cut(segments, rows, f"the IMU's time went back from t = {self._last[0]:.6f} s to "
+                                  f"t = {self._behind[0][0]:.6f} s")
+        rows, self._behind = self._behind, []
+        self._last = rows[-1]
+        return rows
 
     def _close(self, segments: list[Segment], rows: list[np.ndarray]) -> None:
         """The rows since the last cut as a segment, which takes the pending restart (none without rows)."""
