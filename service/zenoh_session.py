@@ -1,9 +1,9 @@
 """Opening the Zenoh session from the configuration (transport-notes.md §1).
 
 The embedded default is a peer on loopback with multicast scouting off and explicit endpoints:
-nothing leaves the machine unless the configuration says so. A standard Zenoh JSON5 file
-(``zenoh.config_file``) is the base when given; mode, listen and connect from sinsalign's
-configuration or the command line go on top.
+nothing leaves the machine unless the configuration says so, with or without a standard Zenoh JSON5 file
+(``zenoh.config_file``) as the base; mode, listen and connect from sinsalign's configuration or the command
+line go on top.
 """
 from __future__ import annotations
 
@@ -17,30 +17,38 @@ DEFAULT_LISTEN = ("tcp/127.0.0.1:7447",)
 """Where the embedded default listens: loopback only."""
 
 
+LOOPBACK_DEFAULTS = (
+    ("scouting/multicast/enabled", "false"),
+    ("scouting/gossip/enabled", "false"),
+    ("scouting/delay", "0"),
+    # sub-second reconnects instead of the default 1 s → 4 s back-off (transport-notes pitfall 4)
+    ("connect/retry", "{period_init_ms: 100, period_max_ms: 500, period_increase_factor: 1.5}"),
+)
+"""What sinsalign sets where a configuration leaves Zenoh's own default: no multicast scouting (Zenoh's default
+announces the session on the LAN), no waiting for scouting at open, quick reconnects."""
+
+
 def session_config(z: ZenohConfig) -> zenoh.Config:
     """A zenoh.Config for ``z``; raises ZError with Zenoh's own message on a bad file or key.
 
-    Without a file: the embedded default (peer, multicast scouting off, listen on
-    ``DEFAULT_LISTEN`` unless told otherwise). With a file (TLS, access control, a router
-    deployment …): the file as written, with only what the configuration or the command line
-    states explicitly (mode, listen, connect) put on top.
+    The base is a standard Zenoh JSON5 file (``z.config_file``: TLS, access control, a router deployment …) or
+    nothing. Every key of :data:`LOOPBACK_DEFAULTS`, and the listen endpoints (:data:`DEFAULT_LISTEN`, none when
+    connecting), that the base leaves at Zenoh's default gets sinsalign's: Zenoh's defaults listen on every
+    interface and scout by multicast, so a file that sets only TLS must not open the daemon to the network. What
+    the configuration or the command line states (mode, listen, connect) goes on top.
     """
-    if z.config_file:
-        conf = zenoh.Config.from_file(z.config_file)
-    else:
-        conf = zenoh.Config()
-        conf.insert_json5("scouting/multicast/enabled", "false")
-        conf.insert_json5("scouting/gossip/enabled", "false")
-        conf.insert_json5("scouting/delay", "0")
-        # sub-second reconnects instead of the default 1 s → 4 s back-off (transport-notes pitfall 4)
-        conf.insert_json5("connect/retry", "{period_init_ms: 100, period_max_ms: 500, period_increase_factor: 1.5}")
-        conf.insert_json5("listen/endpoints", json.dumps(list(z.listen or (() if z.connect else DEFAULT_LISTEN))))
-        conf.insert_json5("connect/endpoints", json.dumps(list(z.connect)))
-    if z.mode or not z.config_file:
+    conf = zenoh.Config.from_file(z.config_file) if z.config_file else zenoh.Config()
+    pristine = zenoh.Config()
+    if z.mode or conf.get_json("mode") == pristine.get_json("mode"):
         conf.insert_json5("mode", json.dumps(z.mode or "peer"))
-    if z.config_file and z.listen:
+    client = json.loads(conf.get_json("mode")) == "client"     # a client listens nowhere
+    listen = json.dumps(list(() if z.connect or client else DEFAULT_LISTEN))
+    for key, value in (*LOOPBACK_DEFAULTS, ("listen/endpoints", listen)):
+        if conf.get_json(key) == pristine.get_json(key):
+            conf.insert_json5(key, value)
+    if z.listen:
         conf.insert_json5("listen/endpoints", json.dumps(list(z.listen)))
-    if z.config_file and z.connect:
+    if z.connect:
         conf.insert_json5("connect/endpoints", json.dumps(list(z.connect)))
     return conf
 
