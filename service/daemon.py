@@ -17,6 +17,7 @@ effective configuration.
 from __future__ import annotations
 
 import logging
+import queue
 import threading
 import time
 from typing import TextIO
@@ -29,8 +30,7 @@ from ..protocol.imu_log import IMU_COLUMNS, write_header, write_rows
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
 from ..protocol.sequence import SequenceTracker
-from .config import Config, ConfigError
-from .inbox import Inbox
+from .config import Config
 from .ingest import Ingest, SampleCounters
 from .safe_files import open_private
 from .sample_gate import Sample
@@ -42,13 +42,7 @@ AID_START_GRACE_S = 30.0
 """IMU data (s) an aided mode may run without a usable aiding value before health degrades: a GNSS receiver's
 warm start; a stream that never comes, comes for another kind, or is stamped off the IMU's clock shows after it."""
 INBOX_LIMIT = 100_000
-"""Messages each Zenoh inbox holds for the loop (8 minutes of a 200-Hz IMU)."""
-INBOX_BYTES = 32 << 20
-"""Bytes each Zenoh inbox holds: the messages' limit at their usual size, three times over."""
 MSGPACK = zenoh.Encoding("application/msgpack")
-UNIT_CHECK_S = 0.5
-"""How long the start waits for another daemon's liveliness token of the same unit (s): replies come in a
-millisecond on a connected network; without any peer the query returns at once."""
 
 
 class Daemon:
@@ -67,16 +61,15 @@ class Daemon:
         self._last_input = None
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
-        self._inbox: Inbox[zenoh.ZBytes] = Inbox(INBOX_LIMIT, INBOX_BYTES)
+        self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
         self._recording: TextIO | None = self._open_recording(config.daemon.record_path)
         self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
         self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
-        self._refuse_a_served_unit()
         self._token = session.liveliness().declare_token(self.keys.alive)
         self._queryable = session.declare_queryable(self.keys.state, self._on_query)
         self._imu_sub = (session.declare_subscriber(self.keys.imu, self._on_imu)
                          if config.zenoh.imu_input else None)
-        self._aid_inbox: Inbox[tuple[str, zenoh.ZBytes]] = Inbox(INBOX_LIMIT, INBOX_BYTES)
+        self._aid_inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
         self._aid_subs = [session.declare_subscriber(self.keys.aid(kind), self._aid_callback(kind))
                           for kind in self.ingest.aid_kinds]
         self._next_status = time.monotonic()
@@ -88,24 +81,33 @@ class Daemon:
 
     # ---- inputs -------------------------------------------------------------------------
     def _aid_callback(self, kind: str):
-        def on_aid(sample: zenoh.Sample) -> None:   # a Zenoh thread: hand the payload over
-            self._aid_inbox.put((kind, sample.payload), len(sample.payload))
+        def on_aid(sample: zenoh.Sample) -> None:   # a Zenoh thread: hand the bytes over
+            if self._aid_inbox.qsize() >= INBOX_LIMIT:
+                self.counters.inbox_overflow += 1
+                return
+            self._aid_inbox.put((kind, sample.payload.to_bytes()))
         return on_aid
 
     def _zenoh_aiding_epochs(self) -> list[tuple[str, messages.AidingSample]]:
         """Every aiding epoch that arrived on Zenoh, decoded, in arrival order; a bad one counted and dropped."""
         epochs = []
-        for kind, payload in self._aid_inbox.drain():
+        while True:
             try:
-                epochs.append((kind, messages.decode_aiding(kind, payload.to_bytes())))
+                kind, data = self._aid_inbox.get_nowait()
+            except queue.Empty:
+                return epochs
+            try:
+                epochs.append((kind, messages.decode_aiding(kind, data)))
             except messages.MessageError as exc:
                 self.counters.bad_aiding += 1
                 self._error(f"aiding message on {self.keys.aid(kind)} dropped: {exc}")
-        return epochs
 
     def _on_imu(self, sample: zenoh.Sample) -> None:
-        # a Zenoh thread: only hand the payload over (not even copied); decoding happens in the loop
-        self._inbox.put(sample.payload, len(sample.payload))
+        # a Zenoh thread: only hand the bytes over; decoding happens in the loop
+        if self._inbox.qsize() >= INBOX_LIMIT:
+            self.counters.inbox_overflow += 1
+            return
+        self._inbox.put(sample.payload.to_bytes())
 
     def _read_inputs(self) -> list[Sample]:
         """Decoded samples from every input, in arrival order.
@@ -118,14 +120,18 @@ class Daemon:
         if self.serial is not None:
             out += self.ingest.decode_serial(self.serial.read())
         if self._imu_sub is not None:
-            out += self._decode_zenoh(self._inbox.drain(0.0 if self.serial is not None else 0.02))
+            try:
+                first = self._inbox.get_nowait() if self.serial is not None else self._inbox.get(timeout=0.02)
+            except queue.Empty:
+                return out
+            out += self._decode_zenoh(self._drain(first))
         return out
 
-    def _decode_zenoh(self, payloads: list[zenoh.ZBytes]) -> list[Sample]:
+    def _decode_zenoh(self, items: list[bytes]) -> list[Sample]:
         out = []
-        for payload in payloads:
+        for data in items:
             try:
-                m = messages.decode_imu(payload.to_bytes())
+                m = messages.decode_imu(data)
             except messages.MessageError as exc:
                 self.counters.bad_messages += 1
                 self._error(f"IMU message dropped: {exc}")
@@ -134,6 +140,14 @@ class Daemon:
                 out.append((m.t, m.dtheta, m.dv, m.status, False))
         self.counters.samples_in_zenoh += len(out)
         return out
+
+    def _drain(self, first: bytes) -> list[bytes]:
+        items = [first]
+        while True:
+            try:
+                items.append(self._inbox.get_nowait())
+            except queue.Empty:
+                return items
 
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
@@ -196,9 +210,6 @@ class Daemon:
     # ---- status, state, recording -----------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
         counters = self.ingest.all_counters() | self.zenoh_sequence.counters("zenoh_seq_")
-        inboxes = (self._inbox, self._aid_inbox)
-        counters["inbox_overflow"] += sum(inbox.overflow for inbox in inboxes)
-        counters["oversized_messages"] = sum(inbox.oversized for inbox in inboxes)
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects,
                          "serial_foreign_devices": self.serial.foreign_devices}
@@ -239,14 +250,6 @@ class Daemon:
         if text != self.last_error:
             log.warning(text)
         self.last_error = text
-
-    def _refuse_a_served_unit(self) -> None:
-        """Raise ConfigError if another daemon's liveliness token for this unit is on the network: two daemons on one
-        unit id would interleave one attitude stream. (A peer that connects later is not seen here.)"""
-        replies = self.session.liveliness().get(self.keys.alive, timeout=UNIT_CHECK_S)
-        if any(reply.ok is not None for reply in replies):
-            raise ConfigError(f"zenoh.unit {self.keys.unit!r}: another daemon already serves it on this Zenoh network "
-                              f"(its liveliness token {self.keys.alive} is up): give this one another unit id")
 
     def _inputs_text(self) -> str:
         inputs = [f"serial {self.serial.path} @ {self.serial.baud} Bd"] if self.serial is not None else []
