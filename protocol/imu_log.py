@@ -6,28 +6,44 @@ acc_vrw_ug_rthz), then the header ``t,dthx,dthy,dthz,dvx,dvy,dvz``, then one row
 t in s at the end of the sample interval, gyro angle increments in rad, velocity increments in
 m/s, body axes Right-Front-Up.
 
-The reader streams the file in chunks (bounded memory) with numpy's C parser; when a chunk does
-not parse it re-reads that chunk line by line to name the file, line and column at fault.
+The reader streams the file in chunks (bounded memory, lines of at most :data:`MAX_LINE_CHARS`) with numpy's C
+parser; when a chunk does not parse it re-reads that chunk line by line to name the file, line and column at fault.
+A value that parses but no sensor or place can have (a rate of 1e308 Hz, a latitude of 95°, an increment of 1e300)
+is refused like a malformed one: every comment key is held to a :class:`Range`, and so is every cell when the
+consumer asks (:class:`RowLimits`; the replay does, a round trip of the format need not); every value an error
+message quotes is cut short (:func:`shown`), so the message stays one short line whatever the file holds.
 """
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Iterator
+import reprlib
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from itertools import islice
 from pathlib import Path
 from typing import TextIO
 
 import numpy as np
 
+from .plausibility import HEIGHT_RANGE_M
+
 IMU_COLUMNS = ("t", "dthx", "dthy", "dthz", "dvx", "dvy", "dvz")
 IMU_WIDTH = len(IMU_COLUMNS)
 """Floats per IMU sample wherever samples travel as rows: t (s), Δθ (3) rad, Δv (3) m/s."""
 REQUIRED_KEYS = ("lat_deg", "lon_deg", "height_m", "rate_hz")
-DATASHEET_KEYS = ("gyro_bias_deg_h", "gyro_arw_deg_rth", "acc_bias_ug", "acc_vrw_ug_rthz")
 TRUTH_COLUMNS = ("t", "heading_deg", "pitch_deg", "roll_deg", "qw", "qx", "qy", "qz")
 CHUNK_ROWS = 20000
+MAX_LINE_CHARS = 4096
+"""The longest line a log may hold (a data row takes under 200 characters): a file without line ends is no log,
+and reading it as one line would take its whole size in memory."""
+BATCH_LINES = 256
+"""Lines read before their ends are checked: a line without an end is read in pieces of :data:`MAX_LINE_CHARS`."""
+MAX_COMMENT_KEYS = 1000
+"""Comment keys a log may state: a log states a dozen; a file of millions would fill the memory with them."""
+SHOWN_CHARS = 40
+"""The most characters of a value an error message quotes."""
 
 
 class LogFormatError(ValueError):
@@ -37,6 +53,109 @@ class LogFormatError(ValueError):
         where = f"{path}:{line}" + (f", column {column!r}" if column else "")
         super().__init__(f"{where}: {problem}")
         self.path, self.line, self.column, self.problem = path, line, column, problem
+
+
+_REPR = reprlib.Repr()
+_REPR.maxlevel, _REPR.maxstring, _REPR.maxother, _REPR.maxlong = 3, SHOWN_CHARS, SHOWN_CHARS, SHOWN_CHARS
+
+
+def shown(value: object) -> str:
+    """``value`` quoted for a one-line error message, cut to :data:`SHOWN_CHARS` characters then "…": a log's
+    line or a configured value may be megabytes long or nested thousands deep, and an integer of more than 4300
+    digits has no decimal form at all."""
+    if isinstance(value, str):
+        return repr(value[:SHOWN_CHARS]) + ("…" if len(value) > SHOWN_CHARS else "")
+    try:
+        text = _REPR.repr(value)
+    except ValueError:   # Python refuses to print an integer that long
+        return f"<{type(value).__name__} too large to print>"
+    return text if len(text) <= SHOWN_CHARS else text[:SHOWN_CHARS] + "…"
+
+
+@dataclass(frozen=True, slots=True)
+class Range:
+    """The values a physical quantity may take: ``low`` to ``high``, an end excluded where ``open_low`` or
+    ``open_high`` says; ``why`` (its unit, or why the bound) goes into the error message."""
+
+    low: float
+    high: float
+    open_low: bool = False
+    open_high: bool = False
+    why: str = ""
+
+    def holds(self, values: float | np.ndarray) -> bool | np.ndarray:
+        """Whether each value lies in the range (NaN never does); a Python number may be an integer of any size."""
+        above = values > self.low if self.open_low else values >= self.low
+        below = values < self.high if self.open_high else values <= self.high
+        return above & below
+
+    def __str__(self) -> str:
+        text = f"{'(' if self.open_low else '['}{self.low:g}, {self.high:g}{')' if self.open_high else ']'}"
+        return f"{text} ({self.why})" if self.why else text
+
+
+SITE_RANGES = {
+    "lat_deg": Range(-90.0, 90.0, open_low=True, open_high=True, why="°; gyrocompassing needs Ω cos L"),
+    "lon_deg": Range(-180.0, 180.0, why="°"),
+    "height_m": Range(*HEIGHT_RANGE_M, why="m: the deepest ocean floor to the edge of space"),
+}
+RATE_RANGE = Range(1.0, 10000.0, why="Hz, positive: no IMU outputs slower than 1 Hz or faster than 10 kHz")
+DATASHEET_RANGES = {
+    "gyro_bias_deg_h": Range(0.0, 1e5, why="°/h, 28 °/s: above any MEMS gyro's offset"),
+    "gyro_arw_deg_rth": Range(0.0, 100.0, why="°/√h: far above a consumer MEMS gyro's, about 1"),
+    "acc_bias_ug": Range(0.0, 1e5, why="µg, 0.1 g: above any MEMS accelerometer's offset"),
+    "acc_vrw_ug_rthz": Range(0.0, 1e4, why="µg/√Hz: far above a consumer MEMS accelerometer's, about 300"),
+}
+"""The datasheet's 1-sigma figures; 0 states an ideal sensor (a simulation's)."""
+DATASHEET_KEYS = tuple(DATASHEET_RANGES)
+IMU_KEY_RANGES = {**SITE_RANGES, "rate_hz": RATE_RANGE, **DATASHEET_RANGES}
+MAX_GYRO_RANGE_DEG_S = 1e5
+"""The widest measurement range a gyro may be stated to have (°/s; the widest MEMS ones: ±4000)."""
+MAX_ACC_RANGE_G = 1e4
+"""The widest measurement range an accelerometer may be stated to have (g; shock-rated ones: ±2000)."""
+MAX_TIME_S = 1e10
+"""The largest time stamp of any clock (s): Unix time stays below it until the year 2286."""
+TIME_RANGE = Range(-MAX_TIME_S, MAX_TIME_S, why="s")
+G0_MS2 = 9.80665
+
+
+@dataclass(frozen=True, slots=True)
+class RowLimits:
+    """What a log's rows may physically hold: a :class:`Range` per column (by name), and Ranges for the length of
+    vectors spanning several columns (a speed, a quaternion's norm), each named for the message."""
+
+    cells: Mapping[str, Range]
+    norms: tuple[tuple[tuple[str, ...], str, Range], ...] = ()
+
+    def problem(self, block: np.ndarray, columns: tuple[str, ...]) -> tuple[int, str | None, str] | None:
+        """The first row of ``block`` (finite values, columns named ``columns``) outside the limits: (row index,
+        the column at fault or None for a vector, the problem), or None."""
+        checks = [(block[:, columns.index(name)], name, name, limit) for name, limit in self.cells.items()]
+        with np.errstate(over="ignore", under="ignore"):   # a vector of 1e200s has an infinite length: refused below
+            checks += [(np.linalg.norm(block[:, [columns.index(c) for c in names]], axis=1), None, what, limit)
+                       for names, what, limit in self.norms]
+        failures = []
+        for order, (values, column, what, limit) in enumerate(checks):
+            bad = ~limit.holds(values)
+            if bad.any():
+                row = int(np.argmax(bad))
+                failures.append((row, order, column, f"{what} {float(values[row])!r} is outside {limit}"))
+        if not failures:
+            return None
+        row, _, column, text = min(failures)
+        return row, column, text
+
+
+def imu_limits(rate_hz: float) -> RowLimits:
+    """What an IMU log's rows may hold at ``rate_hz``: time stamps of any clock, and increments within the widest
+    ranges a sensor may be stated to have over twice the sample interval (its clock's jitter)."""
+    interval_s = 2.0 / rate_hz
+    dtheta = math.radians(MAX_GYRO_RANGE_DEG_S) * interval_s
+    dv = MAX_ACC_RANGE_G * G0_MS2 * interval_s
+    angle = Range(-dtheta, dtheta, why=f"rad: {MAX_GYRO_RANGE_DEG_S:g} °/s over 2 sample intervals")
+    speed = Range(-dv, dv, why=f"m/s: {MAX_ACC_RANGE_G:g} g over 2 sample intervals")
+    return RowLimits({"t": TIME_RANGE, **dict.fromkeys(IMU_COLUMNS[1:4], angle),
+                      **dict.fromkeys(IMU_COLUMNS[4:], speed)})
 
 
 @dataclass(frozen=True, slots=True)
@@ -80,14 +199,52 @@ def _parse_value(text: str) -> float | str:
     return value if math.isfinite(value) else text
 
 
+def _lines(stream: TextIO, path: str, first_line: int, count: int) -> list[str]:
+    """Up to ``count`` lines of ``stream``, the first being line ``first_line``, each read no further than
+    :data:`MAX_LINE_CHARS`; LogFormatError on a longer line, or on a last line without its line end (a file cut
+    short: its last number may be cut too). Read in batches of :data:`BATCH_LINES`, so a line of gigabytes costs
+    one batch of pieces before it is found."""
+    read = iter(partial(stream.readline, MAX_LINE_CHARS + 1), "")
+    lines: list[str] = []
+    while len(lines) < count:
+        wanted = min(BATCH_LINES, count - len(lines))
+        batch = list(islice(read, wanted))
+        if "".join(batch).count("\n") != len(batch):
+            k = next(k for k, raw in enumerate(batch) if not raw.endswith("\n"))
+            raise LogFormatError(path, first_line + len(lines) + k, None,
+                                 f"line longer than {MAX_LINE_CHARS} characters" if len(batch[k]) > MAX_LINE_CHARS
+                                 else "no end of line: the file ends inside this line (cut short?)")
+        lines += batch
+        if len(batch) < wanted:
+            break
+    return lines
+
+
+def _check_keys(values: Mapping[str, float | str], path: str, line_no: int, required: tuple[str, ...],
+                ranges: Mapping[str, Range]) -> None:
+    """The required comment keys are there and numbers; each key with a range (present) lies in it."""
+    for key in required:
+        if key not in values:
+            raise LogFormatError(path, line_no, None, f"comment key '# {key}=…' is missing before the header")
+    for key in (*required, *(k for k in ranges if k in values and k not in required)):
+        value = values[key]
+        if not isinstance(value, float):
+            raise LogFormatError(path, line_no, None, f"comment key {key} is not a finite number: {shown(value)}")
+        if key in ranges and not ranges[key].holds(value):
+            raise LogFormatError(path, line_no, None, f"comment key {key} must be a number in {ranges[key]}, "
+                                 f"found {value!r}")
+
+
 def read_header(stream: TextIO, path: str, columns: tuple[str, ...] = IMU_COLUMNS,
-                required: tuple[str, ...] = REQUIRED_KEYS) -> tuple[LogHeader, int]:
-    """Read the comment lines and the column header; return the header and lines consumed."""
+                required: tuple[str, ...] = REQUIRED_KEYS,
+                ranges: Mapping[str, Range] = IMU_KEY_RANGES) -> tuple[LogHeader, int]:
+    """Read the comment lines and the column header; return the header and lines consumed. The ``required`` keys
+    must be numbers, and every key of ``ranges`` that is given must lie in its range."""
     values: dict[str, float | str] = {}
     line_no = 0
-    for raw in stream:
+    while lines := _lines(stream, path, line_no + 1, 1):
         line_no += 1
-        line = raw.strip()
+        line = lines[0].strip()
         if not line:
             continue
         if line.startswith("#"):
@@ -95,20 +252,13 @@ def read_header(stream: TextIO, path: str, columns: tuple[str, ...] = IMU_COLUMN
             if "=" in body:
                 key, _, value = body.partition("=")
                 values[key.strip()] = _parse_value(value.strip())
+                if len(values) > MAX_COMMENT_KEYS:
+                    raise LogFormatError(path, line_no, None, f"more than {MAX_COMMENT_KEYS} comment keys")
             continue
         names = tuple(name.strip() for name in line.split(","))
         if names != columns:
-            raise LogFormatError(path, line_no, None, f"header must be {','.join(columns)!r}, found {line!r}")
-        for key in required:
-            if key not in values:
-                raise LogFormatError(path, line_no, None, f"comment key '# {key}=…' is missing before the header")
-            if not isinstance(values[key], float):
-                raise LogFormatError(path, line_no, None, f"comment key {key} is not a finite number: {values[key]!r}")
-        if "rate_hz" in required and not values["rate_hz"] > 0:
-            raise LogFormatError(path, line_no, None, f"rate_hz must be positive, found {values['rate_hz']}")
-        for key in DATASHEET_KEYS:
-            if key in values and not (isinstance(values[key], float) and values[key] >= 0):
-                raise LogFormatError(path, line_no, None, f"datasheet key {key} must be a number ≥ 0")
+            raise LogFormatError(path, line_no, None, f"header must be {','.join(columns)!r}, found {shown(line)}")
+        _check_keys(values, path, line_no, required, ranges)
         return LogHeader(values), line_no
     raise LogFormatError(path, max(line_no, 1), None, f"no header line {','.join(columns)!r} found")
 
@@ -138,25 +288,28 @@ def _diagnose(lines: list[str], first_line: int, path: str, columns: tuple[str, 
             return LogFormatError(path, line_no, None, f"expected {len(columns)} values, found {len(cells)}")
         for name, cell in zip(columns, cells, strict=True):
             if not NUMBER.fullmatch(cell) and not NON_FINITE.fullmatch(cell):
-                return LogFormatError(path, line_no, name, f"not a number: {cell.strip()!r}")
+                return LogFormatError(path, line_no, name, f"not a number: {shown(cell.strip())}")
             if not math.isfinite(float(cell)):
-                return LogFormatError(path, line_no, name, f"not finite: {cell.strip()!r}")
+                return LogFormatError(path, line_no, name, f"not finite: {shown(cell.strip())}")
     return LogFormatError(path, first_line, None, "unreadable rows")
 
 
+def _line_of(lines: list[str], first_line: int, row: int) -> int:
+    """The line number of data row ``row`` of a chunk of ``lines`` starting at line ``first_line``."""
+    return first_line + [i for i, raw in enumerate(lines) if _is_row(raw)][row]
+
+
 def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
-              chunk_rows: int = CHUNK_ROWS, increasing: bool = True) -> Iterator[np.ndarray]:
-    """Yield (N, len(columns)) float64 blocks of the data rows.
+              chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
+              limits: RowLimits | None = None) -> Iterator[np.ndarray]:
+    """Yield (N, len(columns)) float64 blocks of the data rows, every value within ``limits`` (if given).
 
     ``increasing``: time must increase strictly (IMU logs); aiding logs leave ordering to the
     consumer, which counts repeats and out-of-order epochs instead of stopping.
     """
     line_no = first_line
     t_last = -math.inf
-    while True:
-        lines = [raw for raw in islice(stream, chunk_rows)]
-        if not lines:
-            return
+    while lines := _lines(stream, path, line_no, chunk_rows):
         kept = [raw for raw in lines if _is_row(raw)]
         try:
             with np.errstate(all="ignore"):
@@ -167,13 +320,16 @@ def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ..
             ok = False
         if not ok:
             raise _diagnose(lines, line_no, path, columns)
+        problem = None if limits is None else limits.problem(block, columns)
+        if problem is not None:
+            row, column, text = problem
+            raise LogFormatError(path, _line_of(lines, line_no, row), column, text)
         times = block[:, 0]
         steps = np.diff(times, prepend=t_last)
         if increasing and len(times) and not (steps > 0).all():
             bad = int(np.flatnonzero(steps <= 0)[0])
-            bad_line = line_no + [i for i, raw in enumerate(lines) if _is_row(raw)][bad]
-            raise LogFormatError(path, bad_line, "t", f"time does not increase ({float(times[bad])!r} after "
-                                 f"{float(times[bad - 1] if bad else t_last)!r})")
+            raise LogFormatError(path, _line_of(lines, line_no, bad), "t", f"time does not increase "
+                                 f"({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})")
         if len(times):
             t_last = float(times[-1])
         line_no += len(lines)
@@ -187,17 +343,28 @@ class ImuLog:
     path: str
     header: LogHeader
 
-    def blocks(self, chunk_rows: int = CHUNK_ROWS) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
-        for block in stream_rows(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows):
+    @property
+    def limits(self) -> RowLimits:
+        """What this log's rows may physically hold at its rate (:func:`imu_limits`)."""
+        return imu_limits(self.header.rate_hz)
+
+    def blocks(self, chunk_rows: int = CHUNK_ROWS,
+               limits: RowLimits | None = None) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """(t, Δθ, Δv) blocks of at most ``chunk_rows`` samples; with ``limits`` (:attr:`limits` for an alignment)
+        a sample outside them stops the reading, named by line and column. Without, any finite value reads back
+        exactly as written, the float64 extremes too."""
+        for block in stream_rows(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits):
             yield block[:, 0], block[:, 1:4], block[:, 4:7]
 
 
 def stream_rows(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,
-                increasing: bool = True) -> Iterator[np.ndarray]:
-    """The data rows of a log with these columns, in (N, len(columns)) blocks after its header."""
+                increasing: bool = True, ranges: Mapping[str, Range] = IMU_KEY_RANGES,
+                limits: RowLimits | None = None) -> Iterator[np.ndarray]:
+    """The data rows of a log with these columns, in (N, len(columns)) blocks after its header (its keys checked
+    against ``ranges``), each value within ``limits``."""
     with open(path, encoding="utf-8", errors="replace") as stream:
-        _, consumed = read_header(stream, path, columns, required)
-        yield from read_rows(stream, path, consumed + 1, columns, chunk_rows, increasing)
+        _, consumed = read_header(stream, path, columns, required, ranges)
+        yield from read_rows(stream, path, consumed + 1, columns, chunk_rows, increasing, limits)
 
 
 def open_imu_log(path: str | Path) -> ImuLog:
@@ -209,11 +376,13 @@ def open_imu_log(path: str | Path) -> ImuLog:
 
 
 def write_header(stream: TextIO, values: dict[str, object], columns: tuple[str, ...]) -> None:
+    """Comment keys and the header row, each line ended (a reader takes a last line without its end as a file cut
+    short)."""
     for key, value in values.items():
         stream.write(f"# {key}={value}\n")
     stream.write(",".join(columns) + "\n")
 
 
 def write_rows(stream: TextIO, rows: np.ndarray) -> None:
-    """Rows with round-trip precision (17 significant digits), so replays are exact."""
+    """Rows with round-trip precision (17 significant digits), so replays are exact; each line ended."""
     np.savetxt(stream, rows, fmt="%.17g", delimiter=",")

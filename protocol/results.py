@@ -50,7 +50,20 @@ class ResultRecord:
         return d
 
     def to_json(self) -> str:
-        return json.dumps(self.wire_dict(), separators=(",", ":"))
+        """One line of strict JSON. A number that is not finite (trace_P aside, carried as null) is a fault upstream;
+        it is refused here, naming the fields, rather than written as NaN or Infinity, which no JSON reader takes."""
+        d = self.wire_dict()
+        bad = [name for name, value in d.items() if not _finite(value)]
+        if bad:
+            raise ValueError(f"result at t = {self.t!r}: {', '.join(bad)} not finite; not written")
+        return json.dumps(d, separators=(",", ":"), allow_nan=False)
+
+
+def _finite(value: Any) -> bool:
+    """Whether a wire field holds finite numbers only (texts, booleans and null hold none)."""
+    if isinstance(value, list):
+        return all(_finite(v) for v in value)
+    return not isinstance(value, float) or math.isfinite(value)
 
 
 def validate_result(row: Any) -> list[str]:

@@ -1,46 +1,106 @@
 """Configuration: defaults < TOML file < command-line overrides, validated at start-up.
 
 Every key lives in one table; an unknown key or a value of the wrong type or range stops the
-start with a message that names the key. Units are in the key names.
+start with a message that names the key. Units are in the key names. Every number has the range a physical system
+needs next to its field (:func:`_number`), every list its lengths, every text its length: a value that parses but
+no sensor, site or computer can hold (a control step of 1e12 s sizes a store of petabytes) is refused at the start
+like a wrong type. A key a log states of itself (site, rate, datasheet, aiding noise and lever arm) has the range
+the log's reader holds it to (protocol/imu_log.py, protocol/aiding_log.py).
 """
 from __future__ import annotations
 
+import difflib
 import math
 import tomllib
+from collections.abc import Collection, Sequence
 from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from ..protocol.aiding_log import (
+    LEVER_RANGE,
+    MASTER_ATTITUDE_STD_RANGE,
+    MASTER_VELOCITY_STD_RANGE,
+    POSITION_STD_RANGE,
+    VELOCITY_STD_RANGE,
+)
+from ..protocol.imu_log import (
+    DATASHEET_RANGES,
+    MAX_ACC_RANGE_G,
+    MAX_GYRO_RANGE_DEG_S,
+    RATE_RANGE,
+    SITE_RANGES,
+    Range,
+    shown,
+)
 from ..protocol.keys import UnitKeys
 from ..protocol.messages import AIDING_FIELDS as AIDING_KINDS
 from .align.compass import GainSchedule
 from .align.solvers import ALIGNMENT_SOLVERS, SOLVERS
+
+DAY_S = 86400.0
+MAX_TEXT_CHARS = 4096
+"""The longest text a key may hold (a path's limit on Linux)."""
+MAX_FILE_BYTES = 1 << 20
+"""The largest configuration file read: a configuration takes a few kilobytes."""
+MAX_STORED_ROWS = 100_000
+"""The most rows a store sized by two keys may take (window / interval): tens of megabytes at most."""
 
 
 class ConfigError(ValueError):
     """A configuration problem; the message names the key."""
 
 
+def _number(default: float, limit: Range) -> Any:
+    """A numeric key: its ``default`` and the range ``limit`` its value must lie in."""
+    return field(default=default, metadata={"range": limit})
+
+
+def _numbers(default: tuple[float, ...], limit: Range, lengths: Collection[int], what: str) -> Any:
+    """A list of numbers: each in ``limit``, as many as ``lengths`` allows (``what`` says so in the message)."""
+    return field(default=default, metadata={"range": limit, "lengths": lengths, "what": what})
+
+
+def _texts(default: tuple[str, ...], lengths: Collection[int], what: str) -> Any:
+    """A list of texts, as many as ``lengths`` allows."""
+    return field(default=default, metadata={"lengths": lengths, "what": what})
+
+
+def _text(default: str, chars: int) -> Any:
+    """A text of at most ``chars`` characters (those that go into keys and messages are short)."""
+    return field(default=default, metadata={"chars": chars})
+
+
+def _seconds(default: float, low: float, high: float, why: str = "s") -> Any:
+    """A duration or interval in seconds from ``low`` to ``high``."""
+    return _number(default, Range(low, high, why=why))
+
+
+def _positive(default: float, high: float, why: str) -> Any:
+    """A number above 0 (a 0 would divide or gate everything away) up to ``high``."""
+    return _number(default, Range(0.0, high, open_low=True, why=why))
+
+
 @dataclass(frozen=True, slots=True)
 class SensorConfig:
     """Datasheet 1-sigma figures of the IMU; a log's own comment keys override them."""
 
-    gyro_bias_deg_h: float = 0.01
-    gyro_arw_deg_rth: float = 0.001
-    acc_bias_ug: float = 50.0
-    acc_vrw_ug_rthz: float = 5.0
+    gyro_bias_deg_h: float = _number(0.01, DATASHEET_RANGES["gyro_bias_deg_h"])
+    gyro_arw_deg_rth: float = _number(0.001, DATASHEET_RANGES["gyro_arw_deg_rth"])
+    acc_bias_ug: float = _number(50.0, DATASHEET_RANGES["acc_bias_ug"])
+    acc_vrw_ug_rthz: float = _number(5.0, DATASHEET_RANGES["acc_vrw_ug_rthz"])
 
 
 @dataclass(frozen=True, slots=True)
 class AlignmentConfig:
     """Coarse alignment (inertial frame, seed 000)."""
 
-    solver: str = "auto"
+    solver: str = _text("auto", 32)
     """One of :data:`~.align.solvers.ALIGNMENT_SOLVERS`; "auto": OPREQ, or GLS where the gyro's walk dominates."""
-    request_rho: float = 0.01
-    obs_interval_s: float = 0.1
-    disturbance_velocity_mps: float = 1e-3
-    converged_heading_sigma_deg: float = 0.1
+    request_rho: float = _number(0.01, Range(0.0, 1.0, open_low=True))
+    obs_interval_s: float = _positive(0.1, 60.0, "s; the pipeline refuses one shorter than the IMU's sample period")
+    disturbance_velocity_mps: float = _number(1e-3, Range(0.0, 10.0, why="m/s"))
+    converged_heading_sigma_deg: float = _positive(0.1, 180.0, "°")
     swing_bias: bool = True
     """Estimate the accelerometer bias seen through a swinging body and take its term out of α (fixed base)."""
 
@@ -51,22 +111,26 @@ class FineConfig:
 
     The schedule gives loop bandwidths σ (rad/s) at loop times (s since the hand-over), geometric
     in between; azimuth σ 0 = levelling only. Defaults suit navigation-grade sensors. A "sigma"
-    hand-over waits at least ``handover_min_s`` of coarse alignment whatever the σ.
+    hand-over waits at least ``handover_min_s`` of coarse alignment whatever the σ. The passes' store holds
+    ``stored_data_s / control_interval_s`` steps, at most :data:`MAX_STORED_ROWS`.
     """
 
     enabled: bool = True
-    handover: str = "sigma"
-    handover_sigma_deg: float = 0.05
-    handover_min_s: float = 10.0
-    handover_time_s: float = 60.0
-    handover_schedule_s: float = 31.0
-    control_interval_s: float = 0.1
-    schedule_time_s: tuple[float, ...] = (0.0, 30.0, 31.0, 100.0, 200.0, 300.0)
-    level_sigma: tuple[float, ...] = (0.5, 0.5, 0.05, 0.04, 0.03, 0.02)
-    azimuth_sigma: tuple[float, ...] = (0.0, 0.0, 0.05, 0.03, 0.015, 0.01)
-    stored_data_s: float = 80.0
-    stored_pairs: int = 3
-    live_pass_steps: int = 40
+    handover: str = _text("sigma", 32)
+    handover_sigma_deg: float = _positive(0.05, 180.0, "°")
+    handover_min_s: float = _seconds(10.0, 0.0, DAY_S)
+    handover_time_s: float = _seconds(60.0, 0.0, DAY_S)
+    handover_schedule_s: float = _seconds(31.0, 0.0, DAY_S)
+    control_interval_s: float = _seconds(0.1, 1e-3, 10.0)
+    schedule_time_s: tuple[float, ...] = _numbers((0.0, 30.0, 31.0, 100.0, 200.0, 300.0), Range(0.0, DAY_S, why="s"),
+                                                  range(1, 101), "1 to 100 knots")
+    level_sigma: tuple[float, ...] = _numbers((0.5, 0.5, 0.05, 0.04, 0.03, 0.02), Range(0.0, 10.0, why="rad/s"),
+                                              range(1, 101), "1 to 100 knots")
+    azimuth_sigma: tuple[float, ...] = _numbers((0.0, 0.0, 0.05, 0.03, 0.015, 0.01), Range(0.0, 10.0, why="rad/s"),
+                                                range(1, 101), "1 to 100 knots")
+    stored_data_s: float = _seconds(80.0, 0.0, 3600.0, "s; 0 turns the stored-data passes off")
+    stored_pairs: int = _number(3, Range(0, 100))
+    live_pass_steps: int = _number(40, Range(1, 100_000))
 
 
 @dataclass(frozen=True, slots=True)
@@ -101,36 +165,38 @@ class AidingConfig:
     it up to the stream's usual interval plus ``max_wait_s`` (its latency and transport delay).
     """
 
-    odo_latency_s: float = 0.0
-    odo_std_mps: float = 0.03
-    odo_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
-    odo_scale_sigma: float = 0.0
-    odo_lever_sigma_m: float = 0.0
-    gnss_latency_s: float = 0.0
-    gnss_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
-    gnss_formula: str = "vif"
-    gnss_vel_std_mps: float = 0.1
-    gnss_pos_std_m: float = 2.0
-    gnss_handover_s: float = 30.0
-    master_latency_s: float = 0.0
-    master_lever_m: tuple[float, ...] = (0.0, 0.0, 0.0)
-    master_mount_deg: tuple[float, ...] = ()
-    master_mount_sigma_deg: float = 5.0
-    master_att_std_deg: float = 0.001
-    master_vel_std_mps: float = 0.005
-    master_handover_s: float = 0.0
-    master_handover_sigma_deg: float = 0.2
-    master_linear_sigma_deg: float = 5.0
-    master_lever_sigma_m: float = 1.0
-    window_s: float = 120.0
-    levels: int = 10
-    relevel_interval_s: float = 1.0
-    solver: str = "centred"
-    max_gap_s: float = 0.5
-    gate_chi2: float = 16.3
-    handover_heading_sigma_deg: float = 1.0
-    inputs: tuple[str, ...] = ()
-    max_wait_s: float = 0.5
+    odo_latency_s: float = _seconds(0.0, 0.0, 10.0)
+    odo_std_mps: float = _number(0.03, VELOCITY_STD_RANGE)
+    odo_lever_m: tuple[float, ...] = _numbers((0.0, 0.0, 0.0), LEVER_RANGE, (3,), "3 numbers (body x, y, z in m)")
+    odo_scale_sigma: float = _number(0.0, Range(0.0, 1.0, open_high=True))
+    odo_lever_sigma_m: float = _number(0.0, Range(0.0, 100.0, why="m"))
+    gnss_latency_s: float = _seconds(0.0, 0.0, 10.0)
+    gnss_lever_m: tuple[float, ...] = _numbers((0.0, 0.0, 0.0), LEVER_RANGE, (3,), "3 numbers (body x, y, z in m)")
+    gnss_formula: str = _text("vif", 32)
+    gnss_vel_std_mps: float = _number(0.1, VELOCITY_STD_RANGE)
+    gnss_pos_std_m: float = _number(2.0, POSITION_STD_RANGE)
+    gnss_handover_s: float = _seconds(30.0, 0.0, 3600.0)
+    master_latency_s: float = _seconds(0.0, 0.0, 10.0)
+    master_lever_m: tuple[float, ...] = _numbers((0.0, 0.0, 0.0), LEVER_RANGE, (3,),
+                                                 "3 numbers (master body x, y, z in m)")
+    master_mount_deg: tuple[float, ...] = _numbers((), Range(-360.0, 360.0, why="°"), (0, 3),
+                                                   "3 numbers (heading, pitch, roll in deg) or none")
+    master_mount_sigma_deg: float = _positive(5.0, 180.0, "°")
+    master_att_std_deg: float = _number(0.001, MASTER_ATTITUDE_STD_RANGE)
+    master_vel_std_mps: float = _number(0.005, MASTER_VELOCITY_STD_RANGE)
+    master_handover_s: float = _seconds(0.0, 0.0, 3600.0, "s; 0: by σ")
+    master_handover_sigma_deg: float = _positive(0.2, 30.0, "°")
+    master_linear_sigma_deg: float = _positive(5.0, 30.0, "°")
+    master_lever_sigma_m: float = _number(1.0, Range(0.0, 100.0, why="m; 0: taken as known"))
+    window_s: float = _seconds(120.0, 1.0, 3600.0)
+    levels: int = _number(10, Range(1, 50))
+    relevel_interval_s: float = _seconds(1.0, 0.01, 3600.0)
+    solver: str = _text("centred", 32)
+    max_gap_s: float = _seconds(0.5, 1e-3, 60.0)
+    gate_chi2: float = _number(16.3, Range(1.0, 1e4, why="χ², 3 dof; below 1 most good inputs fail"))
+    handover_heading_sigma_deg: float = _positive(1.0, 10.0, "°")
+    inputs: tuple[str, ...] = _texts((), range(len(AIDING_KINDS) + 1), "distinct aiding kinds")
+    max_wait_s: float = _seconds(0.5, 0.0, 10.0)
 
 
 HANDOVERS = ("sigma", "time")
@@ -145,15 +211,16 @@ class DisturbanceConfig:
     Every ``check_interval_s`` the horizontal velocity gained over the last ``window_s`` is checked; above
     ``velocity_threshold_mps`` the base is moving: ``disturbed``, never converged, until it has been at rest for
     ``hold_s``. Then ``action = "restart"`` starts the alignment over if the base really went somewhere (and the
-    restarted alignment stays disturbed for ``hold_s`` more); ``"report"`` only flags.
+    restarted alignment stays disturbed for ``hold_s`` more); ``"report"`` only flags. The window's store holds
+    ``window_s / check_interval_s`` checks, at most :data:`MAX_STORED_ROWS`.
     """
 
     enabled: bool = True
-    velocity_threshold_mps: float = 0.1
-    window_s: float = 2.0
-    check_interval_s: float = 0.1
-    hold_s: float = 10.0
-    action: str = "restart"
+    velocity_threshold_mps: float = _positive(0.1, 100.0, "m/s")
+    window_s: float = _seconds(2.0, 0.01, 600.0)
+    check_interval_s: float = _seconds(0.1, 1e-3, 60.0)
+    hold_s: float = _seconds(10.0, 0.0, DAY_S)
+    action: str = _text("restart", 32)
 
 
 DISTURBANCE_ACTIONS = ("restart", "report")
@@ -163,20 +230,21 @@ DISTURBANCE_ACTIONS = ("restart", "report")
 class SiteConfig:
     """Where the live IMU sits (a log states its own site in its comment keys)."""
 
-    lat_deg: float = 32.0
-    lon_deg: float = 118.0
-    height_m: float = 0.0
+    lat_deg: float = _number(32.0, SITE_RANGES["lat_deg"])
+    lon_deg: float = _number(118.0, SITE_RANGES["lon_deg"])
+    height_m: float = _number(0.0, SITE_RANGES["height_m"])
 
 
 @dataclass(frozen=True, slots=True)
 class ImuConfig:
     """The live IMU: nominal sample rate (a log states its own) and its measurement ranges: an increment beyond
     range × interval (twice, for the interval's jitter) cannot come from the sensor and is dropped as a bad sample.
-    The defaults cover MEMS and tactical units (2000°/s, 100 g); set the datasheet's."""
+    The defaults cover MEMS and tactical units (2000°/s, 100 g); set the datasheet's. A range below 1 g could not
+    measure gravity."""
 
-    rate_hz: float = 200.0
-    gyro_range_deg_s: float = 2000.0
-    acc_range_g: float = 100.0
+    rate_hz: float = _number(200.0, RATE_RANGE)
+    gyro_range_deg_s: float = _number(2000.0, Range(1.0, MAX_GYRO_RANGE_DEG_S, why="°/s"))
+    acc_range_g: float = _number(100.0, Range(1.0, MAX_ACC_RANGE_G, why="g"))
 
 
 @dataclass(frozen=True, slots=True)
@@ -184,8 +252,8 @@ class SerialConfig:
     """The serial input (RS-422 IMU, or a pty on a bench); an empty path means no serial input."""
 
     path: str = ""
-    baud: int = 921600
-    reconnect_max_s: float = 2.0
+    baud: int = _number(921600, Range(1, 16_000_000))
+    reconnect_max_s: float = _seconds(2.0, 0.01, 3600.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -193,25 +261,25 @@ class ZenohConfig:
     """The Zenoh session and keys. Default: peer listening on tcp/127.0.0.1:7447 (loopback only),
     multicast scouting off. An empty mode, listen or connect leaves it to ``config_file`` (if any)."""
 
-    mode: str = ""
-    listen: tuple[str, ...] = ()
-    connect: tuple[str, ...] = ()
+    mode: str = _text("", 32)
+    listen: tuple[str, ...] = _texts((), range(33), "at most 32 endpoints")
+    connect: tuple[str, ...] = _texts((), range(33), "at most 32 endpoints")
     config_file: str = ""
-    prefix: str = "sinsalign"
-    unit: str = "unit1"
+    prefix: str = _text("sinsalign", 100)
+    unit: str = _text("unit1", 64)
     imu_input: bool = False
 
 
 @dataclass(frozen=True, slots=True)
 class DaemonConfig:
-    status_period_s: float = 1.0
+    status_period_s: float = _seconds(1.0, 0.01, 3600.0)
     record_path: str = ""
-    max_bridge_samples: int = 5
+    max_bridge_samples: int = _number(5, Range(0, 1000))
 
 
 @dataclass(frozen=True, slots=True)
 class OutputConfig:
-    period_s: float = 1.0
+    period_s: float = _seconds(1.0, 1e-4, 3600.0)
 
 
 @dataclass(frozen=True, slots=True)
@@ -232,100 +300,81 @@ class Config:
         return asdict(self)
 
 
+def _check_field(key: str, value: Any, metadata: Any) -> None:
+    """One key against its field's bounds: the list's length, each number's range, each text's length."""
+    if "lengths" in metadata and len(value) not in metadata["lengths"]:
+        raise ConfigError(f"{key}: expected {metadata['what']}, got {len(value)}: {shown(list(value))}")
+    items = value if isinstance(value, tuple) else (value,)
+    limit = metadata.get("range")
+    for item in items:
+        if limit is not None and not limit.holds(item):
+            raise ConfigError(f"{key}: {'each value ' if isinstance(value, tuple) else ''}must be in {limit}, "
+                              f"got {shown(item)}")
+        if isinstance(item, str) and len(item) > metadata.get("chars", MAX_TEXT_CHARS):
+            raise ConfigError(f"{key}: at most {metadata.get('chars', MAX_TEXT_CHARS)} characters, got {shown(item)}")
+
+
+def _check_one_of(key: str, value: str, allowed: Sequence[str], note: str = "") -> None:
+    if value not in allowed:
+        raise ConfigError(f"{key}: {shown(value)} is not one of {', '.join(a for a in allowed if a)}{note}")
+
+
+def _check_store(key: str, window_s: float, per: str, interval_s: float, what: str) -> None:
+    """A store of ``window_s / interval_s`` rows stays within :data:`MAX_STORED_ROWS` (its memory is allocated at
+    the start)."""
+    rows = window_s / interval_s
+    if rows > MAX_STORED_ROWS:
+        raise ConfigError(f"{key}: {window_s:g} s at {per} = {interval_s:g} s is {rows:.3g} {what}; at most "
+                          f"{MAX_STORED_ROWS} (lengthen the interval or shorten the window)")
+
+
 def _check(config: Config) -> Config:
-    a, s, o, f = config.alignment, config.sensor, config.output, config.fine
-    if a.solver not in ALIGNMENT_SOLVERS:
-        raise ConfigError(f"alignment.solver: {a.solver!r} is not one of {', '.join(ALIGNMENT_SOLVERS)}")
-    z = config.zenoh
-    if z.mode not in ZENOH_MODES:
-        raise ConfigError(f"zenoh.mode: {z.mode!r} is not one of {', '.join(ZENOH_MODES[1:])}")
+    for section in fields(config):
+        table = getattr(config, section.name)
+        for f in fields(table):
+            _check_field(f"{section.name}.{f.name}", getattr(table, f.name), f.metadata)
+    a, f, ad, z = config.alignment, config.fine, config.aiding, config.zenoh
+    _check_one_of("alignment.solver", a.solver, ALIGNMENT_SOLVERS)
+    _check_one_of("zenoh.mode", z.mode, ZENOH_MODES)
     for key, text in (("zenoh.prefix", z.prefix), ("zenoh.unit", z.unit)):
         try:
             UnitKeys(z.prefix if key == "zenoh.prefix" else "p", text if key == "zenoh.unit" else "u")
         except ValueError as exc:
             raise ConfigError(f"{key}: {exc}") from None
-    ad = config.aiding
-    if ad.solver not in SOLVERS or ad.solver == "gls":
-        raise ConfigError(f"aiding.solver: {ad.solver!r} is not one of {', '.join(s for s in SOLVERS if s != 'gls')} "
-                          "(gls models a fixed base)")
+    _check_one_of("aiding.solver", ad.solver, [s for s in SOLVERS if s != "gls"], " (gls models a fixed base)")
     unknown = [k for k in ad.inputs if k not in AIDING_KINDS]
     if unknown or len(set(ad.inputs)) != len(ad.inputs):
-        raise ConfigError(f"aiding.inputs: {list(ad.inputs)} must name distinct kinds among {', '.join(AIDING_KINDS)}")
-    if len(ad.gnss_lever_m) != 3:
-        raise ConfigError(f"aiding.gnss_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.gnss_lever_m)}")
-    if ad.gnss_formula not in GNSS_FORMULAS:
-        raise ConfigError(f"aiding.gnss_formula: {ad.gnss_formula!r} is not one of {', '.join(GNSS_FORMULAS)}")
-    if len(ad.master_mount_deg) not in (0, 3):
-        raise ConfigError(f"aiding.master_mount_deg: expected 3 numbers (heading, pitch, roll in deg) or none, got "
-                          f"{list(ad.master_mount_deg)}")
-    if len(ad.master_lever_m) != 3:
-        raise ConfigError(f"aiding.master_lever_m: expected 3 numbers (master body x, y, z in m), got "
-                          f"{list(ad.master_lever_m)}")
-    if len(ad.odo_lever_m) != 3:
-        raise ConfigError(f"aiding.odo_lever_m: expected 3 numbers (body x, y, z in m), got {list(ad.odo_lever_m)}")
-    if config.disturbance.action not in DISTURBANCE_ACTIONS:
-        raise ConfigError(f"disturbance.action: {config.disturbance.action!r} is not one of "
-                          f"{', '.join(DISTURBANCE_ACTIONS)}")
-    if f.handover not in HANDOVERS:
-        raise ConfigError(f"fine.handover: {f.handover!r} is not one of {', '.join(HANDOVERS)}")
+        raise ConfigError(f"aiding.inputs: {shown(list(ad.inputs))} must name distinct kinds among "
+                          f"{', '.join(AIDING_KINDS)}")
+    _check_one_of("aiding.gnss_formula", ad.gnss_formula, GNSS_FORMULAS)
+    _check_one_of("disturbance.action", config.disturbance.action, DISTURBANCE_ACTIONS)
+    _check_one_of("fine.handover", f.handover, HANDOVERS)
     try:
         GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma)
     except ValueError as exc:
         raise ConfigError(f"fine.{exc}") from None
-    checks = [
-        ("alignment.request_rho", 0.0 < a.request_rho <= 1.0, "must be in (0, 1]"),
-        ("alignment.obs_interval_s", a.obs_interval_s > 0.0, "must be > 0"),
-        ("alignment.disturbance_velocity_mps", a.disturbance_velocity_mps >= 0.0, "must be ≥ 0"),
-        ("alignment.converged_heading_sigma_deg", a.converged_heading_sigma_deg > 0.0, "must be > 0"),
-        ("output.period_s", o.period_s > 0.0, "must be > 0"),
-        ("fine.handover_sigma_deg", f.handover_sigma_deg > 0.0, "must be > 0"),
-        ("fine.handover_time_s", f.handover_time_s >= 0.0, "must be ≥ 0"),
-        ("fine.handover_min_s", f.handover_min_s >= 0.0, "must be ≥ 0"),
-        ("fine.handover_schedule_s", f.handover_schedule_s >= 0.0, "must be ≥ 0"),
-        ("fine.control_interval_s", f.control_interval_s > 0.0, "must be > 0"),
-        ("fine.stored_data_s", f.stored_data_s >= 0.0, "must be ≥ 0 (0 turns the stored-data passes off)"),
-        ("fine.stored_pairs", 0 <= f.stored_pairs <= 100, "must be in 0..100"),
-        ("fine.live_pass_steps", f.live_pass_steps >= 1, "must be ≥ 1"),
-        ("site.lat_deg", -90.0 < config.site.lat_deg < 90.0, "must be in (-90, 90) (gyrocompassing needs Ω cos L)"),
-        ("imu.rate_hz", 0.0 < config.imu.rate_hz <= 10000.0, "must be in (0, 10000]"),
-        ("imu.gyro_range_deg_s", 0.0 < config.imu.gyro_range_deg_s <= 1e5, "must be in (0, 100000]"),
-        ("imu.acc_range_g", 0.0 < config.imu.acc_range_g <= 1e4, "must be in (0, 10000]"),
-        ("serial.baud", 0 < config.serial.baud <= 16_000_000, "must be in 1..16000000"),
-        ("serial.reconnect_max_s", config.serial.reconnect_max_s > 0.0, "must be > 0"),
-        ("daemon.status_period_s", config.daemon.status_period_s > 0.0, "must be > 0"),
-        ("disturbance.velocity_threshold_mps", config.disturbance.velocity_threshold_mps > 0.0, "must be > 0"),
-        ("disturbance.window_s", config.disturbance.window_s > 0.0, "must be > 0"),
-        ("disturbance.check_interval_s", config.disturbance.check_interval_s > 0.0, "must be > 0"),
-        ("disturbance.hold_s", config.disturbance.hold_s >= 0.0, "must be ≥ 0"),
-        ("aiding.odo_latency_s", 0.0 <= ad.odo_latency_s <= 10.0, "must be in [0, 10]"),
-        ("aiding.odo_std_mps", ad.odo_std_mps > 0.0, "must be > 0"),
-        ("aiding.gnss_latency_s", 0.0 <= ad.gnss_latency_s <= 10.0, "must be in [0, 10]"),
-        ("aiding.gnss_vel_std_mps", ad.gnss_vel_std_mps > 0.0, "must be > 0"),
-        ("aiding.gnss_pos_std_m", ad.gnss_pos_std_m > 0.0, "must be > 0"),
-        ("aiding.gnss_handover_s", 0.0 <= ad.gnss_handover_s <= 3600.0, "must be in [0, 3600]"),
-        ("aiding.master_latency_s", 0.0 <= ad.master_latency_s <= 10.0, "must be in [0, 10]"),
-        ("aiding.master_att_std_deg", ad.master_att_std_deg > 0.0, "must be > 0"),
-        ("aiding.master_vel_std_mps", ad.master_vel_std_mps > 0.0, "must be > 0"),
-        ("aiding.master_handover_s", 0.0 <= ad.master_handover_s <= 3600.0, "must be in [0, 3600] (0: by σ)"),
-        ("aiding.master_mount_sigma_deg", 0.0 < ad.master_mount_sigma_deg <= 180.0, "must be in (0, 180]"),
-        ("aiding.master_lever_sigma_m", 0.0 <= ad.master_lever_sigma_m <= 1000.0, "must be in [0, 1000]"),
-        ("aiding.master_linear_sigma_deg", 0.0 < ad.master_linear_sigma_deg <= 30.0, "must be in (0, 30]"),
-        ("aiding.master_handover_sigma_deg", ad.master_handover_sigma_deg > 0.0, "must be > 0"),
-        ("aiding.odo_scale_sigma", 0.0 <= ad.odo_scale_sigma < 1.0, "must be in [0, 1)"),
-        ("aiding.odo_lever_sigma_m", 0.0 <= ad.odo_lever_sigma_m <= 100.0, "must be in [0, 100]"),
-        ("aiding.window_s", 1.0 <= ad.window_s <= 3600.0, "must be in [1, 3600]"),
-        ("aiding.levels", 1 <= ad.levels <= 50, "must be in 1..50"),
-        ("aiding.relevel_interval_s", ad.relevel_interval_s > 0.0, "must be > 0"),
-        ("aiding.max_gap_s", ad.max_gap_s > 0.0, "must be > 0"),
-        ("aiding.gate_chi2", ad.gate_chi2 > 0.0, "must be > 0"),
-        ("aiding.handover_heading_sigma_deg", 0.0 < ad.handover_heading_sigma_deg <= 10.0, "must be in (0, 10]"),
-        ("aiding.max_wait_s", 0.0 <= ad.max_wait_s <= 10.0, "must be in [0, 10]"),
-        ("daemon.max_bridge_samples", 0 <= config.daemon.max_bridge_samples <= 1000, "must be in 0..1000"),
-    ] + [(f"sensor.{f.name}", getattr(s, f.name) >= 0.0, "must be ≥ 0") for f in fields(s)]
-    for key, ok, rule in checks:
-        if not ok:
-            raise ConfigError(f"{key}: {rule}")
+    if f.stored_pairs > 0:
+        _check_store("fine.stored_data_s", f.stored_data_s, "fine.control_interval_s", f.control_interval_s,
+                     "stored steps")
+    if a.obs_interval_s >= 1.0 / RATE_RANGE.high:   # a shorter one is shorter than any IMU's period: refused unsized
+        _check_store("aiding.window_s", ad.window_s, "alignment.obs_interval_s", a.obs_interval_s,
+                     "stored observations")
+    d = config.disturbance
+    _check_store("disturbance.window_s", d.window_s, "disturbance.check_interval_s", d.check_interval_s,
+                 "stored checks")
     return config
+
+
+def _unknown(name: object, where: str, known: Sequence[str]) -> ConfigError:
+    """An unknown section or key, named (cut short, quoted unless a plain name) with the names it may have meant: all
+    of them if they are few."""
+    text = str(name)
+    text = (text if len(text) <= 40 else text[:40] + "…") if text.isidentifier() else shown(name)
+    listing = ", ".join(known)
+    close = difflib.get_close_matches(str(name)[:100], known, n=3)
+    hint = (f"known: {listing}" if len(listing) <= 120 else f"did you mean {' or '.join(close)}?" if close
+            else "docs/reference.md, 'Configuration', lists them")
+    return ConfigError(f"{where}{text}: unknown {'key' if where else 'section'} ({hint})")
 
 
 def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
@@ -333,17 +382,17 @@ def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
     updates = {}
     for key, value in table.items():
         if key not in known:
-            raise ConfigError(f"{section}.{key}: unknown key (known: {', '.join(known)})")
+            raise _unknown(key, f"{section}.", list(known))
         default = getattr(section_obj, key)
         if isinstance(default, float) and isinstance(value, int) and not isinstance(value, bool):
             try:
                 value = float(value)
             except OverflowError:
-                raise ConfigError(f"{section}.{key}: {value} is out of range") from None
+                raise ConfigError(f"{section}.{key}: {shown(value)} is out of range") from None
         if isinstance(default, tuple):
             value = (_string_list if "str" in str(known[key].type) else _number_list)(f"{section}.{key}", value)
         if type(value) is not type(default):
-            raise ConfigError(f"{section}.{key}: expected {type(default).__name__}, got {value!r}")
+            raise ConfigError(f"{section}.{key}: expected {type(default).__name__}, got {shown(value)}")
         if isinstance(value, float) and not math.isfinite(value):
             raise ConfigError(f"{section}.{key}: must be a finite number, got {value!r}")
         updates[key] = value
@@ -353,46 +402,58 @@ def _merge(section_obj: Any, section: str, table: dict[str, Any]) -> Any:
 def _number_list(key: str, value: Any) -> tuple[float, ...]:
     if not isinstance(value, list | tuple) or not all(
             isinstance(v, int | float) and not isinstance(v, bool) for v in value):
-        raise ConfigError(f"{key}: expected a list of numbers, got {value!r}")
+        raise ConfigError(f"{key}: expected a list of numbers, got {shown(value)}")
     try:
         numbers = tuple(float(v) for v in value)
     except OverflowError:
         raise ConfigError(f"{key}: a number is out of range") from None
     if not all(math.isfinite(v) for v in numbers):
-        raise ConfigError(f"{key}: must hold finite numbers, got {value!r}")
+        raise ConfigError(f"{key}: must hold finite numbers, got {shown(value)}")
     return numbers
 
 
 def _string_list(key: str, value: Any) -> tuple[str, ...]:
     if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
-        raise ConfigError(f"{key}: expected a list of strings, got {value!r}")
+        raise ConfigError(f"{key}: expected a list of strings, got {shown(value)}")
     return tuple(value)
 
 
 def config_from_mapping(data: dict[str, Any], base: Config | None = None) -> Config:
     """Apply a nested mapping (parsed TOML, or overrides) onto ``base`` and validate."""
     config = base or Config()
-    sections = {f.name for f in fields(config)}
+    sections = sorted(f.name for f in fields(config))
     updates = {}
     for section, table in data.items():
         if section not in sections:
-            raise ConfigError(f"{section}: unknown section (known: {', '.join(sorted(sections))})")
+            raise _unknown(section, "", sections)
         if not isinstance(table, dict):
             raise ConfigError(f"{section}: must be a table")
         updates[section] = _merge(getattr(config, section), section, table)
     return _check(replace(config, **updates))
 
 
+def _read_toml(path: str | Path) -> dict[str, Any]:
+    """The TOML file at ``path``, read no further than :data:`MAX_FILE_BYTES`; every way it can fail (unreadable,
+    not UTF-8, not TOML, nested beyond the parser's recursion, an integer too long to convert) as one line."""
+    try:
+        with open(path, "rb") as stream:
+            raw = stream.read(MAX_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc
+    if len(raw) > MAX_FILE_BYTES:
+        raise ConfigError(f"{path}: larger than {MAX_FILE_BYTES} bytes: not a configuration file")
+    try:
+        return tomllib.loads(raw.decode("utf-8"))
+    except RecursionError:
+        raise ConfigError(f"{path}: not valid TOML: nested too deeply") from None
+    except ValueError as exc:   # TOMLDecodeError, UnicodeDecodeError, an integer of more than 4300 digits
+        problem = str(exc)
+        raise ConfigError(f"{path}: not valid TOML: {problem if len(problem) <= 120 else problem[:120] + '…'}") from exc
+
+
 def load_config(path: str | Path | None = None, overrides: dict[str, Any] | None = None) -> Config:
     """Defaults, then the TOML file (if any), then ``overrides`` like {"output": {"period_s": 0.5}}."""
     config = Config()
     if path is not None:
-        try:
-            with open(path, "rb") as stream:
-                data = tomllib.load(stream)
-        except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
-            raise ConfigError(f"{path}: not valid TOML: {exc}") from exc
-        except OSError as exc:
-            raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc
-        config = config_from_mapping(data, config)
+        config = config_from_mapping(_read_toml(path), config)
     return config_from_mapping(overrides or {}, config)

@@ -593,6 +593,20 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _check_scenario(args: argparse.Namespace) -> None:
+    """A scenario name the simulator does not know is the user's error, said before anything runs (``main`` lets
+    a KeyError through: anywhere else it is a bug, and shows as one)."""
+    name = getattr(args, "scenario", None)
+    if not name or name in AIDED_TABLES:
+        return
+    from sinsalign.service.config import ConfigError
+    from sinsalign.tools.sim.scenarios import get_scenario
+    try:
+        get_scenario(name)
+    except KeyError as exc:
+        raise ConfigError(exc.args[0]) from None
+
+
 def main(argv: list[str] | None = None) -> int:
     from zenoh import ZError
 
@@ -605,10 +619,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 2
     try:
+        _check_scenario(args)
         return args.func(args)
-    except (LogFormatError, ConfigError, KeyError, OSError, ZError) as exc:
-        message = exc.args[0] if isinstance(exc, KeyError) and exc.args else exc
-        print(f"sinsalign {args.command}: error: {message}", file=sys.stderr)
+    except (LogFormatError, ConfigError, OSError, ZError) as exc:
+        print(f"sinsalign {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         return 130

@@ -3,8 +3,9 @@ from __future__ import annotations
 
 import os
 import sys
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
@@ -14,7 +15,8 @@ from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
-from sinsalign.service.config import Config, ConfigError
+from sinsalign.service.config import Config, ConfigError, config_from_mapping
+from sinsalign.service.safe_files import open_private
 
 
 @dataclass(frozen=True, slots=True)
@@ -39,14 +41,25 @@ def parse_aids(specs: list[str] | None) -> dict[str, str]:
 
 
 def open_aids(aids: dict[str, str], config: Config) -> tuple[Config, dict[str, AidingFeed]]:
-    """Each aiding log opened as a feed (latency, gaps from the configuration); the configuration with what the
-    logs state of themselves (their noise, a GNSS or master log's lever arm)."""
+    """Each aiding log opened as a feed (latency, gaps from the configuration; every epoch held to what its kind of
+    source can report); the configuration with what the logs state of themselves (their noise, a GNSS or master
+    log's lever arm), validated as the configuration is."""
     feeds = {}
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
-        feeds[kind] = AidingFeed(AidingTrack.configured(kind, config.aiding), log.blocks())
-        config = replace(config, aiding=replace(config.aiding, **log.stated()))
+        feeds[kind] = AidingFeed(AidingTrack.configured(kind, config.aiding), log.blocks(limits=log.kind.limits))
+        config = config_from_mapping({"aiding": log.stated()}, config)
     return config, feeds
+
+
+def _open_partial(partial: Path, out_path: Path) -> TextIO:
+    """The temporary results file: created afresh, owner-only, never through a symbolic link (one planted at the
+    predictable name would have the replay overwrite what it points at)."""
+    try:
+        return open_private(partial, exclusive=True)
+    except FileExistsError:
+        raise OSError(f"{partial} exists: another replay is writing {out_path.name}, or one was stopped; remove it "
+                      "if not") from None
 
 
 def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress: bool | None = None,
@@ -54,8 +67,8 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     """Process ``imu_csv`` (with aiding logs ``aids``: kind → path) and write one result per output
     epoch to ``out_jsonl``.
 
-    Raises LogFormatError (file, line, column named) on a malformed log; ``out_jsonl`` is then
-    left as it was (results go to a temporary file that replaces it only on success).
+    Raises LogFormatError (file, line, column named) on a malformed log or a sample no IMU can measure;
+    ``out_jsonl`` is then left as it was (results go to a temporary file that replaces it only on success).
     """
     log = open_imu_log(imu_csv)
     h = log.header
@@ -69,12 +82,12 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     last = None
     out_path = Path(out_jsonl)
     partial = out_path.with_name(f".{out_path.name}.partial")
+    out = _open_partial(partial, out_path)
     try:
-        with open(partial, "w", encoding="utf-8") as out, Progress(
-                TextColumn("replay"), BarColumn(), TextColumn("{task.fields[info]}"), TimeRemainingColumn(),
-                disable=not show, transient=True) as bar:
+        with out, Progress(TextColumn("replay"), BarColumn(), TextColumn("{task.fields[info]}"), TimeRemainingColumn(),
+                           disable=not show, transient=True) as bar:
             task = bar.add_task("replay", total=size, info="")
-            for t, dtheta, dv in log.blocks():
+            for t, dtheta, dv in log.blocks(limits=log.limits):
                 aid = None if aid_feed is None else aid_feed.aid_at(t)
                 for record in pipeline.process(t, dtheta, dv, aid):
                     out.write(record.to_json() + "\n")
