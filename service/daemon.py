@@ -17,7 +17,6 @@ effective configuration.
 from __future__ import annotations
 
 import logging
-import queue
 import threading
 import time
 from typing import TextIO
@@ -30,7 +29,8 @@ from ..protocol.imu_log import IMU_COLUMNS, write_header, write_rows
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
 from ..protocol.sequence import SequenceTracker
-from .config import Config
+from .config import Config, ConfigError
+from .inbox import Inbox
 from .ingest import Ingest, SampleCounters
 from .safe_files import open_private
 from .sample_gate import Sample
@@ -42,7 +42,13 @@ AID_START_GRACE_S = 30.0
 """IMU data (s) an aided mode may run without a usable aiding value before health degrades: a GNSS receiver's
 warm start; a stream that never comes, comes for another kind, or is stamped off the IMU's clock shows after it."""
 INBOX_LIMIT = 100_000
+"""Messages each Zenoh inbox holds for the loop (8 minutes of a 200-Hz IMU)."""
+INBOX_BYTES = 32 << 20
+"""Bytes each Zenoh inbox holds: the messages' limit at their usual size, three times over."""
 MSGPACK = zenoh.Encoding("application/msgpack")
+UNIT_CHECK_S = 0.3
+"""How long a start connected to other Zenoh nodes looks for another daemon's liveliness token of the same unit
+(s): the tokens arrive some 50 ms after the session opens. Without any peer there is nothing to wait for."""
 
 
 class Daemon:
@@ -61,15 +67,16 @@ class Daemon:
         self._last_input = None
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
-        self._inbox: queue.SimpleQueue[bytes] = queue.SimpleQueue()
+        self._inbox: Inbox[zenoh.ZBytes] = Inbox(INBOX_LIMIT, INBOX_BYTES)
         self._recording: TextIO | None = self._open_recording(config.daemon.record_path)
         self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
         self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
+        self._refuse_a_served_unit()
         self._token = session.liveliness().declare_token(self.keys.alive)
         self._queryable = session.declare_queryable(self.keys.state, self._on_query)
         self._imu_sub = (session.declare_subscriber(self.keys.imu, self._on_imu)
                          if config.zenoh.imu_input else None)
-        self._aid_inbox: queue.SimpleQueue[tuple[str, bytes]] = queue.SimpleQueue()
+        self._aid_inbox: Inbox[tuple[str, zenoh.ZBytes]] = Inbox(INBOX_LIMIT, INBOX_BYTES)
         self._aid_subs = [session.declare_subscriber(self.keys.aid(kind), self._aid_callback(kind))
                           for kind in self.ingest.aid_kinds]
         self._next_status = time.monotonic()
@@ -81,33 +88,24 @@ class Daemon:
 
     # ---- inputs -------------------------------------------------------------------------
     def _aid_callback(self, kind: str):
-        def on_aid(sample: zenoh.Sample) -> None:   # a Zenoh thread: hand the bytes over
-            if self._aid_inbox.qsize() >= INBOX_LIMIT:
-                self.counters.inbox_overflow += 1
-                return
-            self._aid_inbox.put((kind, sample.payload.to_bytes()))
+        def on_aid(sample: zenoh.Sample) -> None:   # a Zenoh thread: hand the payload over
+            self._aid_inbox.put((kind, sample.payload), len(sample.payload))
         return on_aid
 
     def _zenoh_aiding_epochs(self) -> list[tuple[str, messages.AidingSample]]:
         """Every aiding epoch that arrived on Zenoh, decoded, in arrival order; a bad one counted and dropped."""
         epochs = []
-        while True:
+        for kind, payload in self._aid_inbox.drain():
             try:
-                kind, data = self._aid_inbox.get_nowait()
-            except queue.Empty:
-                return epochs
-            try:
-                epochs.append((kind, messages.decode_aiding(kind, data)))
+                epochs.append((kind, messages.decode_aiding(kind, payload.to_bytes())))
             except messages.MessageError as exc:
                 self.counters.bad_aiding += 1
                 self._error(f"aiding message on {self.keys.aid(kind)} dropped: {exc}")
+        return epochs
 
     def _on_imu(self, sample: zenoh.Sample) -> None:
-        # a Zenoh thread: only hand the bytes over; decoding happens in the loop
-        if self._inbox.qsize() >= INBOX_LIMIT:
-            self.counters.inbox_overflow += 1
-            return
-        self._inbox.put(sample.payload.to_bytes())
+        # a Zenoh thread: only hand the payload over (not even copied); decoding happens in the loop
+        self._inbox.put(sample.payload, len(sample.payload))
 
     def _read_inputs(self) -> list[Sample]:
         """Decoded samples from every input, in arrival order.
@@ -120,18 +118,14 @@ class Daemon:
         if self.serial is not None:
             out += self.ingest.decode_serial(self.serial.read())
         if self._imu_sub is not None:
-            try:
-                first = self._inbox.get_nowait() if self.serial is not None else self._inbox.get(timeout=0.02)
-            except queue.Empty:
-                return out
-            out += self._decode_zenoh(self._drain(first))
+            out += self._decode_zenoh(self._inbox.drain(0.0 if self.serial is not None else 0.02))
         return out
 
-    def _decode_zenoh(self, items: list[bytes]) -> list[Sample]:
+    def _decode_zenoh(self, payloads: list[zenoh.ZBytes]) -> list[Sample]:
         out = []
-        for data in items:
+        for payload in payloads:
             try:
-                m = messages.decode_imu(data)
+                m = messages.decode_imu(payload.to_bytes())
             except messages.MessageError as exc:
                 self.counters.bad_messages += 1
                 self._error(f"IMU message dropped: {exc}")
@@ -140,14 +134,6 @@ class Daemon:
                 out.append((m.t, m.dtheta, m.dv, m.status, False))
         self.counters.samples_in_zenoh += len(out)
         return out
-
-    def _drain(self, first: bytes) -> list[bytes]:
-        items = [first]
-        while True:
-            try:
-                items.append(self._inbox.get_nowait())
-            except queue.Empty:
-                return items
 
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
@@ -210,6 +196,9 @@ class Daemon:
     # ---- status, state, recording -----------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
         counters = self.ingest.all_counters() | self.zenoh_sequence.counters("zenoh_seq_")
+        inboxes = (self._inbox, self._aid_inbox)
+        counters["inbox_overflow"] += sum(inbox.overflow for inbox in inboxes)
+        counters["oversized_messages"] = sum(inbox.oversized for inbox in inboxes)
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects,
                          "serial_foreign_devices": self.serial.foreign_devices}
@@ -250,6 +239,19 @@ class Daemon:
         if text != self.last_error:
             log.warning(text)
         self.last_error = text
+
+    def _refuse_a_served_unit(self) -> None:
+        """Raise ConfigError if another daemon's liveliness token for this unit is on the network: two daemons on one
+        unit id would interleave one attitude stream. (A peer that connects later is not seen here.)"""
+        info = self.session.info
+        connected = bool(list(info.peers_zid()) or list(info.routers_zid()))
+        deadline = time.monotonic() + (UNIT_CHECK_S if connected else 0.0)
+        while not any(reply.ok is not None for reply in self.session.liveliness().get(self.keys.alive, timeout=0.1)):
+            if time.monotonic() >= deadline:
+                return
+            time.sleep(0.02)   # the peers' tokens arrive just after the session opens
+        raise ConfigError(f"zenoh.unit {self.keys.unit!r}: another daemon already serves it on this Zenoh network "
+                          f"(its liveliness token {self.keys.alive} is up): give this one another unit id")
 
     def _inputs_text(self) -> str:
         inputs = [f"serial {self.serial.path} @ {self.serial.baud} Bd"] if self.serial is not None else []

@@ -1,0 +1,129 @@
+"""What a Zenoh peer can make the daemon hold, lose or share, on real Zenoh sessions on loopback.
+
+GIVEN the Zenoh inboxes between the session's threads and the loop, THEN they are bounded in messages and in bytes
+and a payload larger than any valid message is refused, counted (``oversized_messages``). GIVEN an IMU source that
+publishes ten times faster than a 200-Hz IMU with blocking congestion control, THEN nothing is lost; with
+dropping congestion control flat out, every lost sample is counted (``zenoh_seq_gaps``). GIVEN a second daemon
+with a unit id that another daemon on the network serves, THEN it refuses to start, with one line.
+"""
+from __future__ import annotations
+
+import threading
+import time
+
+import pytest
+import zenoh
+from daemon_harness import RunningDaemon, daemon_config, free_port
+from sinsalign.protocol import messages
+from sinsalign.service.config import ConfigError
+from sinsalign.service.daemon import Daemon
+from sinsalign.service.inbox import MAX_MESSAGE_BYTES, Inbox
+from sinsalign.service.zenoh_session import open_session
+from test_daemon_inputs import imu_data, wait_until
+
+
+def test_the_inbox_is_bounded_in_messages_and_bytes_and_refuses_oversized_payloads():
+    inbox: Inbox[bytes] = Inbox(max_messages=3, max_bytes=1000)
+    assert not inbox.put(b"x", MAX_MESSAGE_BYTES + 1) and inbox.oversized == 1
+    assert inbox.put(b"a", 600) and not inbox.put(b"b", 600) and inbox.overflow == 1   # bytes
+    assert inbox.put(b"c", 100) and inbox.put(b"d", 100) and not inbox.put(b"e", 1) and inbox.overflow == 2
+    assert inbox.queued_bytes == 800
+    assert inbox.drain() == [b"a", b"c", b"d"] and inbox.queued_bytes == 0
+    assert inbox.put(b"f", 10)
+
+
+def test_the_loop_waits_for_the_first_message_and_no_longer():
+    inbox: Inbox[bytes] = Inbox(10, 1000)
+    start = time.monotonic()
+    assert inbox.drain(0.05) == [] and time.monotonic() - start >= 0.04
+    threading.Timer(0.02, lambda: inbox.put(b"late", 4)).start()
+    assert inbox.drain(2.0) == [b"late"]
+
+
+def publish_samples(publisher: zenoh.Publisher, n: int, data, first_seq: int = 0) -> None:
+    t, dtheta, dv = data
+    for k in range(n):
+        sample = messages.ImuSample(first_seq + k, float(t[k]), tuple(dtheta[k]), tuple(dv[k]), 0)
+        publisher.put(messages.pack(messages.imu_message(sample)))
+
+
+@pytest.fixture(scope="module")
+def data():
+    return imu_data(30.0)
+
+
+def test_oversized_payloads_on_the_input_keys_are_refused_and_the_alignment_goes_on(tmp_path, data):
+    run = RunningDaemon(tmp_path, zenoh={"imu_input": True}, aiding={"inputs": []}, daemon={"record_path": ""})
+    try:
+        publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
+                                                             congestion_control=zenoh.CongestionControl.BLOCK)
+        wait_until(lambda: publisher.matching_status.matching)
+        big = b"\x00" * (8 << 20)
+        for _ in range(5):
+            publisher.put(big)
+        publish_samples(publisher, 2000, data)
+        wait_until(lambda: run.daemon.counters.samples_in_zenoh == 2000)
+    finally:
+        run.stop()
+    counters = run.subscriber.status[-1]["counters"]
+    assert counters["oversized_messages"] == 5 and counters["bad_messages"] == 0
+    assert counters["samples_used"] == 2000
+
+
+def test_an_imu_source_ten_times_faster_than_the_imu_with_blocking_congestion_control_loses_nothing(tmp_path, data):
+    """6000 samples of a 200-Hz IMU sent in 3 s or less: none lost, none out of order."""
+    n = 6000
+    run = RunningDaemon(tmp_path, zenoh={"imu_input": True}, daemon={"record_path": ""})
+    try:
+        publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
+                                                             congestion_control=zenoh.CongestionControl.BLOCK)
+        start = time.monotonic()
+        publish_samples(publisher, n, data)
+        assert time.monotonic() - start <= n / 2000.0
+        wait_until(lambda: run.daemon.counters.samples_in_zenoh == n, timeout_s=20.0)
+        time.sleep(0.3)
+    finally:
+        run.stop()
+    counters = run.subscriber.status[-1]["counters"]
+    assert counters["samples_in_zenoh"] == counters["samples_used"] == n
+    assert counters["zenoh_seq_gaps"] == counters["zenoh_seq_backwards"] == counters["inbox_overflow"] == 0
+
+
+def test_every_sample_a_dropping_publisher_loses_is_counted(tmp_path, data):
+    n = 5000
+    run = RunningDaemon(tmp_path, zenoh={"imu_input": True}, daemon={"record_path": ""})
+    try:
+        publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
+                                                             congestion_control=zenoh.CongestionControl.DROP)
+        wait_until(lambda: publisher.matching_status.matching)
+        publish_samples(publisher, 1, data)            # the first one arrives: the count starts from it
+        wait_until(lambda: run.daemon.counters.samples_in_zenoh == 1)
+        publish_samples(publisher, n - 1, [a[1:] for a in data], first_seq=1)
+        time.sleep(0.5)
+        closing = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
+                                                           congestion_control=zenoh.CongestionControl.BLOCK)
+        publish_samples(closing, 1, [a[n:] for a in data], first_seq=n)   # the last one shows any gap before it
+        wait_until(lambda: run.daemon.counters.samples_in_zenoh + run.daemon.zenoh_sequence.gaps == n + 1,
+                   timeout_s=20.0)
+    finally:
+        run.stop()
+    counters = run.subscriber.status[-1]["counters"]
+    assert counters["samples_in_zenoh"] + counters["zenoh_seq_gaps"] == n + 1
+
+
+def test_a_second_daemon_on_a_served_unit_id_refuses_to_start(tmp_path):
+    run = RunningDaemon(tmp_path, daemon={"record_path": ""})
+    try:
+        connect = {"connect": [f"tcp/127.0.0.1:{run.port}"], "listen": []}
+        same = daemon_config(tmp_path, free_port(), zenoh=connect, daemon={"record_path": ""})
+        session = open_session(same.zenoh)
+        try:
+            with pytest.raises(ConfigError, match="another daemon already serves it"):
+                Daemon(same, session)
+            other = daemon_config(tmp_path, free_port(), zenoh={**connect, "unit": "bench2"},
+                                  daemon={"record_path": ""})
+            Daemon(other, session).close()
+        finally:
+            session.close()
+    finally:
+        run.stop()
