@@ -299,40 +299,78 @@ def _line_of(lines: list[str], first_line: int, row: int) -> int:
     return first_line + [i for i, raw in enumerate(lines) if _is_row(raw)][row]
 
 
-def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
-              chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
-              limits: RowLimits | None = None) -> Iterator[np.ndarray]:
-    """Yield (N, len(columns)) float64 blocks of the data rows, every value within ``limits`` (if given).
+RESTART_MARKER = "# restart:"
+"""A comment line of a daemon's recording: the alignment started over here (the reason follows), so a replay must
+too; the samples after it may begin a new time base (a sensor restarted its clock)."""
 
-    ``increasing``: time must increase strictly (IMU logs); aiding logs leave ordering to the
-    consumer, which counts repeats and out-of-order epochs instead of stopping.
+
+def _pieces(lines: list[str], first_line: int) -> list[tuple[str | None, list[str], int]]:
+    """A chunk's lines cut at :data:`RESTART_MARKER` lines: (the marker's reason before the piece or None, its
+    lines, the line number of its first)."""
+    pieces, start, reason = [], 0, None
+    for k, raw in enumerate(lines):
+        if raw.startswith(RESTART_MARKER):
+            pieces.append((reason, lines[start:k], first_line + start))
+            reason, start = raw[len(RESTART_MARKER):].strip(), k + 1
+    pieces.append((reason, lines[start:], first_line + start))
+    return pieces
+
+
+def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...],
+           limits: RowLimits | None) -> np.ndarray:
+    """The data rows of ``lines`` (line ``first_line`` on) as an (N, len(columns)) float64 block, every value finite
+    and within ``limits`` (if given); LogFormatError naming the first bad cell."""
+    kept = [raw for raw in lines if _is_row(raw)]
+    try:
+        with np.errstate(all="ignore"):
+            block = np.loadtxt(kept, delimiter=",", ndmin=2, comments=None) if kept else np.empty((0, len(columns)))
+        ok = block.shape[1] == len(columns) and bool(np.isfinite(block).all())
+    except ValueError:
+        ok = False
+    if not ok:
+        raise _diagnose(lines, first_line, path, columns)
+    problem = None if limits is None else limits.problem(block, columns)
+    if problem is not None:
+        row, column, text = problem
+        raise LogFormatError(path, _line_of(lines, first_line, row), column, text)
+    return block
+
+
+def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
+                  chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
+                  limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
+    """Yield (restart, block): (N, len(columns)) float64 blocks of the data rows, every value within ``limits`` (if
+    given), each after a :data:`RESTART_MARKER` line with that marker's reason (None for the others; a marker's
+    block may be empty).
+
+    ``increasing``: time must increase strictly (IMU logs), within the rows between two markers; aiding logs leave
+    ordering to the consumer, which counts repeats and out-of-order epochs instead of stopping.
     """
     line_no = first_line
     t_last = -math.inf
     while lines := _lines(stream, path, line_no, chunk_rows):
-        kept = [raw for raw in lines if _is_row(raw)]
-        try:
-            with np.errstate(all="ignore"):
-                block = (np.loadtxt(kept, delimiter=",", ndmin=2, comments=None) if kept
-                         else np.empty((0, len(columns))))
-            ok = block.shape[1] == len(columns) and bool(np.isfinite(block).all())
-        except ValueError:
-            ok = False
-        if not ok:
-            raise _diagnose(lines, line_no, path, columns)
-        problem = None if limits is None else limits.problem(block, columns)
-        if problem is not None:
-            row, column, text = problem
-            raise LogFormatError(path, _line_of(lines, line_no, row), column, text)
-        times = block[:, 0]
-        steps = np.diff(times, prepend=t_last)
-        if increasing and len(times) and not (steps > 0).all():
-            bad = int(np.flatnonzero(steps <= 0)[0])
-            raise LogFormatError(path, _line_of(lines, line_no, bad), "t", f"time does not increase "
-                                 f"({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})")
-        if len(times):
-            t_last = float(times[-1])
+        for reason, piece, piece_line in _pieces(lines, line_no):
+            if reason is not None:
+                t_last = -math.inf
+            block = _block(piece, piece_line, path, columns, limits)
+            times = block[:, 0]
+            steps = np.diff(times, prepend=t_last)
+            if increasing and len(times) and not (steps > 0).all():
+                bad = int(np.flatnonzero(steps <= 0)[0])
+                raise LogFormatError(path, _line_of(piece, piece_line, bad), "t", f"time does not increase "
+                                     f"({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})")
+            if len(times):
+                t_last = float(times[-1])
+            if len(times) or reason is not None:
+                yield reason, block
         line_no += len(lines)
+
+
+def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
+              chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
+              limits: RowLimits | None = None) -> Iterator[np.ndarray]:
+    """The blocks of :func:`read_segments` without their restart marks."""
+    for _, block in read_segments(stream, path, first_line, columns, chunk_rows, increasing, limits):
         yield block
 
 
@@ -355,6 +393,16 @@ class ImuLog:
         exactly as written, the float64 extremes too."""
         for block in stream_rows(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits):
             yield block[:, 0], block[:, 1:4], block[:, 4:7]
+
+    def segments(self, chunk_rows: int = CHUNK_ROWS, limits: RowLimits | None = None
+                 ) -> Iterator[tuple[str | None, np.ndarray, np.ndarray, np.ndarray]]:
+        """(restart, t, Δθ, Δv) blocks as :meth:`blocks`, ``restart`` the reason of the :data:`RESTART_MARKER` line
+        before the block (a daemon's recording: the alignment started over there), else None."""
+        with open(self.path, encoding="utf-8", errors="replace") as stream:
+            _, consumed = read_header(stream, self.path)
+            for reason, block in read_segments(stream, self.path, consumed + 1, IMU_COLUMNS, chunk_rows,
+                                               limits=limits):
+                yield reason, block[:, 0], block[:, 1:4], block[:, 4:7]
 
 
 def stream_rows(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,

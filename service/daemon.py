@@ -25,7 +25,7 @@ import numpy as np
 import zenoh
 
 from ..protocol import messages
-from ..protocol.imu_log import IMU_COLUMNS, write_header, write_rows
+from ..protocol.imu_log import IMU_COLUMNS, RESTART_MARKER, write_header, write_rows
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
 from ..protocol.sequence import SequenceTracker
@@ -59,7 +59,7 @@ class Daemon:
         self.session = session
         self.serial = serial_port
         self.keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
-        self.ingest = Ingest(config, self._error, self._record_raw)
+        self.ingest = Ingest(config, self._error, self._record_raw, self._record_restart)
         self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.last_error: str | None = None
         self.last_record: ResultRecord | None = None
@@ -271,6 +271,11 @@ class Daemon:
                               "gyro_arw_deg_rth": sensor.gyro_arw_deg_rth, "acc_bias_ug": sensor.acc_bias_ug,
                               "acc_vrw_ug_rthz": sensor.acc_vrw_ug_rthz}, IMU_COLUMNS)
         return stream
+
+    def _record_restart(self, reason: str) -> None:
+        """A restart into the recording, if one is open: its replay starts over at the same sample."""
+        if self._recording is not None:
+            self._recording.write(f"{RESTART_MARKER} {' '.join(reason.split())}\n")
 
     def _record_raw(self, rows: np.ndarray) -> None:
         """Admitted rows (N, 7: t in s, Δθ in rad, Δv in m/s) into the recording, if one is open."""

@@ -8,7 +8,6 @@ so one byte stream gives the same records and counters in whatever pieces it is 
 """
 from __future__ import annotations
 
-import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 
@@ -24,6 +23,7 @@ from .align.conventions import DEG, G_TO_MS2
 from .align.earth import Site
 from .config import Config
 from .pipeline import AlignmentPipeline
+from .restarting import RestartingPipeline
 from .sample_gate import Sample, SampleGate
 
 AIDING_INBOX_LIMIT = 10_000
@@ -42,19 +42,6 @@ def gate_for(config: Config) -> SampleGate:
                       max_dv_mps=config.imu.acc_range_g * G_TO_MS2 * interval_s)
 
 
-def finite_record(record: ResultRecord) -> bool:
-    """Every number of ``record`` is finite (trace_P excepted: infinite before the first observation)."""
-    numbers = (record.t, *record.q, record.pitch_deg, record.roll_deg, record.heading_deg, record.heading_sigma_deg,
-               record.level_sigma_deg, record.rho, *(record.mount_q or ()),
-               0.0 if record.mount_sigma_deg is None else record.mount_sigma_deg)
-    return bool(np.isfinite(numbers).all())
-
-
-def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
-    """Counters ``before`` a restart plus the new pipeline's ``now``, key by key (a key in either)."""
-    return {**before, **{key: before.get(key, 0) + count for key, count in now.items()}}
-
-
 @dataclass(slots=True)
 class SampleCounters(Counters):
     """Checks on decoded samples, whatever their input."""
@@ -70,7 +57,6 @@ class SampleCounters(Counters):
     inbox_overflow: int = 0
     records_published: int = 0
     internal_errors: int = 0
-    estimator_restarts: int = 0     # a pipeline step that raised or put out a non-finite record: started over
 
 
 class Ingest:
@@ -79,12 +65,13 @@ class Ingest:
     ``record_rows`` every admitted row (N, 7: t in s, Δθ in rad, Δv in m/s) before the pipeline takes it."""
 
     def __init__(self, config: Config, report: Callable[[str], None],
-                 record_rows: Callable[[np.ndarray], None] | None = None) -> None:
+                 record_rows: Callable[[np.ndarray], None] | None = None,
+                 record_restart: Callable[[str], None] | None = None) -> None:
         self.config = config
         s = config.site
         self.site = Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m)
         self.aid_kinds = config.aiding.inputs
-        self.pipeline = self._new_pipeline()
+        self.alignment = RestartingPipeline(self._new_pipeline, report)
         ad = config.aiding
         self.tracks = {kind: AidingTrack.configured(kind, ad) for kind in self.aid_kinds}
         # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
@@ -103,22 +90,21 @@ class Ingest:
         self._record_rows = record_rows
         self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None,
                                                  "aiding": None}
-        self._disturbances_before = 0
-        self._aiding_before: dict[str, int] = {}   # the aiding counters of the pipelines before restarts
-        self._pipeline_lock = threading.Lock()   # the status (a Zenoh query's thread too) sees a restart whole
+        self._record_restart = record_restart
 
     def _new_pipeline(self) -> AlignmentPipeline:
         return build_pipeline(self.config, self.site, self.config.imu.rate_hz, aids=self.aid_kinds, live=True)
 
-    def _restart_pipeline(self) -> None:
-        """A fresh pipeline after an outage: the old one's counts carry on in the status, and an aid that had begun
-        stays begun (an observation without it is a dropout, not a wait)."""
-        pipeline = self._new_pipeline()
-        pipeline.carry_aid_start(self.pipeline)
-        with self._pipeline_lock:
-            self._disturbances_before += self.pipeline.disturbances
-            self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
-            self.pipeline = pipeline
+    @property
+    def pipeline(self) -> AlignmentPipeline:
+        """The alignment pipeline now (a restart replaces it)."""
+        return self.alignment.pipeline
+
+    def _restart(self, reason: str) -> None:
+        """Start the alignment over, marked in the recording so that its replay does the same."""
+        if self._record_restart is not None:
+            self._record_restart(reason)
+        self.alignment.restart()
 
     # ---- inputs -------------------------------------------------------------------------
     def decode_serial(self, data: bytes) -> list[Sample]:
@@ -176,7 +162,7 @@ class Ingest:
             if segment.restart:
                 self._report(segment.reason)
                 records += self._feed(None, everything=True)   # what waited for aiding, to the old pipeline
-                self._restart_pipeline()
+                self._restart(segment.reason)
             t = segment.rows[:, 0]
             self.counters.samples_used += len(t)
             self.t_first = float(t[0]) if self.t_first is None else self.t_first
@@ -203,28 +189,17 @@ class Ingest:
         return self._process(ready, aid)
 
     def _process(self, rows: np.ndarray, aid: np.ndarray | None) -> list[ResultRecord]:
-        """The pipeline's records of ``rows`` (N, 7) with their aiding. An estimator that fails on them (raises, or
-        puts out a non-finite number) starts over from the next samples: its state cannot be trusted, and a
-        service that published nothing after one bad step would be down for good."""
-        try:
-            records = self.pipeline.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7], aid)
-            if all(finite_record(r) for r in records):
-                return records
-            failure = "a non-finite attitude or σ"
-        except Exception as exc:   # whatever the estimator raised, the service goes on
-            failure = f"{type(exc).__name__}: {str(exc)[:80]}"
-        self.counters.estimator_restarts += 1
-        self._report(f"alignment failed on the samples t = {rows[0, 0]:.6f}..{rows[-1, 0]:.6f} s ({failure}): "
-                     "restarted")
-        self._restart_pipeline()
-        return []
+        """The pipeline's records of ``rows`` (N, 7) with their aiding; a failed step restarts it, counted, and is
+        marked in the recording after these rows."""
+        records, failure = self.alignment.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7], aid)
+        if failure is not None and self._record_restart is not None:
+            self._record_restart(failure)
+        return records
 
     # ---- state --------------------------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
         """Decoder, sample, gate, pipeline (summed over restarts) and aiding track counters, by status name."""
-        with self._pipeline_lock:
-            pipeline_counts = {"disturbances": self._disturbances_before + self.pipeline.disturbances,
-                               **summed(self._aiding_before, self.pipeline.aiding_counters())}
+        pipeline_counts = self.alignment.counters()
         counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
                     **pipeline_counts}
         for kind, track in self.tracks.items():

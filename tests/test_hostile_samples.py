@@ -17,7 +17,8 @@ import zenoh
 from daemon_harness import RunningDaemon, daemon_config, free_port
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import AIDING_KIND_CODES, MSG_AIDING, AidingPayloadError, Frame, decode_aiding
-from sinsalign.service.ingest import Ingest, finite_record
+from sinsalign.service.ingest import Ingest
+from sinsalign.service.restarting import finite_record
 from test_daemon_inputs import imu_data, wait_until
 
 SECONDS = 12.0

@@ -16,6 +16,7 @@ from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
 from sinsalign.service.config import Config, ConfigError, config_from_mapping
+from sinsalign.service.restarting import RestartingPipeline
 from sinsalign.service.safe_files import open_private
 
 
@@ -73,8 +74,10 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     log = open_imu_log(imu_csv)
     h = log.header
     config, feeds = open_aids(aids or {}, config)
-    pipeline = build_pipeline(config, Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m), h.rate_hz, h.datasheet(),
-                              feeds)
+    site = Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m)
+    # a daemon's recording marks where it started over; a failed step starts over here as it does there
+    alignment = RestartingPipeline(lambda: build_pipeline(config, site, h.rate_hz, h.datasheet(), feeds),
+                                   lambda text: print(f"replay: {text}", file=sys.stderr))
     aid_feed = next(iter(feeds.values()), None)   # one aided mode at a time: build_pipeline refused the rest
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
@@ -87,9 +90,13 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
         with out, Progress(TextColumn("replay"), BarColumn(), TextColumn("{task.fields[info]}"), TimeRemainingColumn(),
                            disable=not show, transient=True) as bar:
             task = bar.add_task("replay", total=size, info="")
-            for t, dtheta, dv in log.blocks(limits=log.limits):
+            for restart, t, dtheta, dv in log.segments(limits=log.limits):
+                if restart is not None:
+                    alignment.restart()
+                if len(t) == 0:
+                    continue
                 aid = None if aid_feed is None else aid_feed.aid_at(t)
-                for record in pipeline.process(t, dtheta, dv, aid):
+                for record in alignment.process(t, dtheta, dv, aid)[0]:
                     out.write(record.to_json() + "\n")
                     records += 1
                     last = record
@@ -98,4 +105,4 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
         os.replace(partial, out_path)
     finally:
         partial.unlink(missing_ok=True)
-    return ReplaySummary(samples, records, last, pipeline.stages_text())
+    return ReplaySummary(samples, records, last, alignment.pipeline.stages_text())

@@ -1,0 +1,80 @@
+"""An alignment pipeline that starts over: when the sample gate asks (an outage, a saturated sample, a clock that
+went back), and when the estimator itself fails.
+
+The daemon (through :class:`~.ingest.Ingest`) and the replay of its recording hold their pipeline in one of these,
+so both make the same decisions from the same samples: the recording marks each restart (:data:`RESTART_MARKER`
+lines, which an IMU log's reader hands over with the samples after them), and a replay restarts where the daemon did.
+"""
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+import numpy as np
+
+from ..protocol.results import ResultRecord
+from .pipeline import AlignmentPipeline
+
+
+def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
+    """Counters ``before`` a restart plus the new pipeline's ``now``, key by key (a key in either)."""
+    return {**before, **{key: before.get(key, 0) + count for key, count in now.items()}}
+
+
+def finite_record(record: ResultRecord) -> bool:
+    """Every number of ``record`` is finite (trace_P excepted: infinite before the first observation)."""
+    numbers = (record.t, *record.q, record.pitch_deg, record.roll_deg, record.heading_deg, record.heading_sigma_deg,
+               record.level_sigma_deg, record.rho, *(record.mount_q or ()),
+               0.0 if record.mount_sigma_deg is None else record.mount_sigma_deg)
+    return bool(np.isfinite(numbers).all())
+
+
+class RestartingPipeline:
+    """The current pipeline of ``make``, replaced by a fresh one on :meth:`restart` or when a step fails; the
+    disturbance and aiding counts of the pipelines before carry on. ``report`` gets a line per failure."""
+
+    def __init__(self, make: Callable[[], AlignmentPipeline], report: Callable[[str], None]) -> None:
+        self._make = make
+        self._report = report
+        self.pipeline = make()
+        self.failures = 0
+        """Steps that raised or put out a non-finite number: the pipeline started over each time."""
+        self._disturbances_before = 0
+        self._aiding_before: dict[str, int] = {}
+        self._lock = threading.Lock()   # the status (a Zenoh query's thread too) sees a restart whole
+
+    def restart(self) -> None:
+        """A fresh pipeline: an aid that had begun stays begun (an observation without it is a dropout, not a wait)."""
+        pipeline = self._make()
+        pipeline.carry_aid_start(self.pipeline)
+        with self._lock:
+            self._disturbances_before += self.pipeline.disturbances
+            self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
+            self.pipeline = pipeline
+
+    def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
+                aid: np.ndarray | None = None) -> tuple[list[ResultRecord], str | None]:
+        """The records of these samples (:meth:`AlignmentPipeline.process`), and None; or, if the estimator fails on
+        them (raises, or puts out a non-finite number), no records and why, the pipeline started over from the next
+        samples: its state cannot be trusted, and a service that published nothing after one bad step would be down
+        for good."""
+        try:
+            records = self.pipeline.process(t, dtheta, dv, aid)
+            if all(finite_record(r) for r in records):
+                return records, None
+            failure = "a non-finite attitude or σ"
+        except Exception as exc:   # whatever the estimator raised, the alignment goes on
+            failure = f"{type(exc).__name__}: {str(exc)[:80]}"
+        self.failures += 1
+        why = f"alignment failed on the samples t = {t[0]:.6f}..{t[-1]:.6f} s ({failure}): restarted"
+        self._report(why)
+        self.restart()
+        return [], why
+
+    def counters(self) -> dict[str, int]:
+        """The failed steps (``estimator_restarts``), disturbances and the aiding counters, summed over the pipelines
+        since the start."""
+        with self._lock:
+            return {"estimator_restarts": self.failures,
+                    "disturbances": self._disturbances_before + self.pipeline.disturbances,
+                    **summed(self._aiding_before, self.pipeline.aiding_counters())}
