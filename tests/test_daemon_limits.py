@@ -47,17 +47,26 @@ def publish_samples(publisher: zenoh.Publisher, n: int, data, first_seq: int = 0
         publisher.put(messages.pack(messages.imu_message(sample)))
 
 
+def zenoh_imu_daemon(tmp_path) -> RunningDaemon:
+    return RunningDaemon(tmp_path, zenoh={"imu_input": True}, daemon={"record_path": ""})
+
+
+def imu_publisher(run: RunningDaemon, congestion: zenoh.CongestionControl) -> zenoh.Publisher:
+    """A publisher on the daemon's IMU key, once the daemon's subscription has reached it."""
+    publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu, congestion_control=congestion)
+    wait_until(lambda: publisher.matching_status.matching)
+    return publisher
+
+
 @pytest.fixture(scope="module")
 def data():
     return imu_data(30.0)
 
 
 def test_oversized_payloads_on_the_input_keys_are_refused_and_the_alignment_goes_on(tmp_path, data):
-    run = RunningDaemon(tmp_path, zenoh={"imu_input": True}, aiding={"inputs": []}, daemon={"record_path": ""})
+    run = zenoh_imu_daemon(tmp_path)
     try:
-        publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
-                                                             congestion_control=zenoh.CongestionControl.BLOCK)
-        wait_until(lambda: publisher.matching_status.matching)
+        publisher = imu_publisher(run, zenoh.CongestionControl.BLOCK)
         big = b"\x00" * (8 << 20)
         for _ in range(5):
             publisher.put(big)
@@ -73,10 +82,9 @@ def test_oversized_payloads_on_the_input_keys_are_refused_and_the_alignment_goes
 def test_an_imu_source_ten_times_faster_than_the_imu_with_blocking_congestion_control_loses_nothing(tmp_path, data):
     """6000 samples of a 200-Hz IMU sent in 3 s or less: none lost, none out of order."""
     n = 6000
-    run = RunningDaemon(tmp_path, zenoh={"imu_input": True}, daemon={"record_path": ""})
+    run = zenoh_imu_daemon(tmp_path)
     try:
-        publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
-                                                             congestion_control=zenoh.CongestionControl.BLOCK)
+        publisher = imu_publisher(run, zenoh.CongestionControl.BLOCK)
         start = time.monotonic()
         publish_samples(publisher, n, data)
         assert time.monotonic() - start <= n / 2000.0
@@ -91,17 +99,14 @@ def test_an_imu_source_ten_times_faster_than_the_imu_with_blocking_congestion_co
 
 def test_every_sample_a_dropping_publisher_loses_is_counted(tmp_path, data):
     n = 5000
-    run = RunningDaemon(tmp_path, zenoh={"imu_input": True}, daemon={"record_path": ""})
+    run = zenoh_imu_daemon(tmp_path)
     try:
-        publisher = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
-                                                             congestion_control=zenoh.CongestionControl.DROP)
-        wait_until(lambda: publisher.matching_status.matching)
+        publisher = imu_publisher(run, zenoh.CongestionControl.DROP)
         publish_samples(publisher, 1, data)            # the first one arrives: the count starts from it
         wait_until(lambda: run.daemon.counters.samples_in_zenoh == 1)
         publish_samples(publisher, n - 1, [a[1:] for a in data], first_seq=1)
         time.sleep(0.5)
-        closing = run.subscriber.session.declare_publisher(run.daemon.keys.imu,
-                                                           congestion_control=zenoh.CongestionControl.BLOCK)
+        closing = imu_publisher(run, zenoh.CongestionControl.BLOCK)
         publish_samples(closing, 1, [a[n:] for a in data], first_seq=n)   # the last one shows any gap before it
         wait_until(lambda: run.daemon.counters.samples_in_zenoh + run.daemon.zenoh_sequence.gaps == n + 1,
                    timeout_s=20.0)
