@@ -1,4 +1,4 @@
-"""The pinned aiding logs (service.md, "Pinned interfaces" 1): body velocity, GNSS, master INS.
+"""The pinned aiding logs (docs/reference.md, "Aiding log formats"): body velocity, GNSS, master INS.
 
 Same style as the IMU log: comment lines ``# key=value``, the header row, one row per epoch in
 time order, each value the instantaneous one at ``t`` (same time base as the IMU log). The

@@ -1,4 +1,4 @@
-"""The pinned IMU log (CSV): reader and writer (service.md, "Pinned interfaces" 1).
+"""The pinned IMU log (CSV): reader and writer (docs/reference.md, "IMU log format").
 
 Layout: comment lines ``# key=value`` first (at least lat_deg, lon_deg, height_m, rate_hz;
 optionally the datasheet figures gyro_bias_deg_h, gyro_arw_deg_rth, acc_bias_ug,

@@ -1,4 +1,4 @@
-"""Results as JSON Lines (service.md, "Pinned interfaces" 2): one object per output epoch.
+"""Results as JSON Lines (docs/reference.md, "Results"): one object per output epoch.
 
 Fields: t (s), phase, q = [w, x, y, z] of C_b^n(t), pitch_deg, roll_deg, heading_deg (0-360,
 clockwise from true North), heading_sigma_deg, level_sigma_deg, converged; plus diagnostics

@@ -25,7 +25,8 @@ class KalmanStagePipeline(AlignmentPipeline):
     """The reported σ is the filter's times this. The filters are Gaussian-calibrated (seed 002, 20 seeds from
     10 s: |error|/σ median 0.71, p99 2.3-2.5; seed 004, 40 seeds, 30-120 s, GNSS at 50/10/5/1 Hz: median 0.52-0.63,
     p99 2.3-2.55, max 2.84-3.07), and so they reach 3σ about once in a few thousand epochs. "Never converged beyond
-    3σ" asks for a margin: 1.25 puts those tails at 2.3-2.5σ (README, "Transfer alignment", "Slower receivers")."""
+    3σ" asks for a margin: 1.25 puts those tails at 2.3-2.5σ (docs/algorithms/transfer.md, "σ, as calibrated";
+    docs/algorithms/gnss.md, "Slower receivers")."""
 
     def _measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
         """(measurement name, value) of one control step's aiding values (finite)."""

@@ -7,7 +7,8 @@ at start, or on a reopen), it keeps waiting. A program that opens the device wit
 
 A vanished port (unplugged adapter, closed pty) is not fatal: the read returns nothing, the disconnect is counted,
 and the port is reopened with a growing back-off (0.1 s doubling up to ``reconnect_max_s``) until it is back
-(transport-notes.md §3: a closed pty raises on every read), but only if what is back is the same device:
+(a pty whose master end has closed makes every read raise SerialException at once, and its /dev/pts name
+vanishes with it), but only if what is back is the same device:
 
 - a plain device path (``/dev/ttyUSB0``, ``/dev/pts/3``) is reopened only while its node's identity
   (st_rdev, st_ino, st_ctime_ns) is the one it had at the last open. A node removed and made again has a new

@@ -1,7 +1,8 @@
-"""Opening the Zenoh session from the configuration (transport-notes.md §1).
+"""Opening the Zenoh session from the configuration.
 
 The embedded default is a peer on loopback with multicast scouting off and explicit endpoints:
-nothing leaves the machine unless the configuration says so, with or without a standard Zenoh JSON5 file
+nothing leaves the machine unless the configuration says so (a plain ``zenoh.Config()`` scouts by UDP multicast
+and listens on every interface), with or without a standard Zenoh JSON5 file
 (``zenoh.config_file``) as the base; mode, listen and connect from sinsalign's configuration or the command
 line go on top.
 """
@@ -21,7 +22,7 @@ LOOPBACK_DEFAULTS = (
     ("scouting/multicast/enabled", "false"),
     ("scouting/gossip/enabled", "false"),
     ("scouting/delay", "0"),
-    # sub-second reconnects instead of the default 1 s → 4 s back-off (transport-notes pitfall 4)
+    # sub-second reconnects: Zenoh's default back-off (1 s, 2 s, 4 s) leaves up to 4 s without data after a peer is back
     ("connect/retry", "{period_init_ms: 100, period_max_ms: 500, period_increase_factor: 1.5}"),
 )
 """What sinsalign sets where a configuration leaves Zenoh's own default: no multicast scouting (Zenoh's default

@@ -2,7 +2,7 @@
 
 GIVEN the seed-001 static and swing bases with known attitude and biases, WHEN OPREQ hands over
 to the compass loops (or the loops start alone from 0.1°/0.1°/1.5° errors), THEN heading and
-level settle on the physical limit (alignment-math.md §3.3), the stored-data passes shorten the
+level settle on the physical limit (docs/algorithms/coarse.md, "Accuracy limits"), the stored-data passes shorten the
 settling, σ stays honest, and the live (sliced) and offline paths give the same bits.
 """
 import functools

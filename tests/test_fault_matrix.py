@@ -1,4 +1,5 @@
-"""The fault matrix (README "Faults"): each fault through the real pty or Zenoh path.
+"""The fault matrix (docs/reference.md, "Faults and what the daemon does"): each fault through the real pty or
+Zenoh path.
 
 GIVEN the daemon aligning a simulated swing base fed at ×40 real time, WHEN one fault is injected
 after 20 s of data, THEN the daemon keeps running, the status counters say exactly what happened,

@@ -81,7 +81,8 @@ def test_bad_solver_settings_are_refused():
 
 
 def test_centred_wahba_absorbs_a_constant_common_to_all_pairs():
-    """The aided-mode trap (math §5): one noisy first sample shifts every observation alike."""
+    """The aided-mode trap (docs/algorithms/odometer.md, "Centred solver"): one noisy first sample shifts every
+    observation alike."""
     from sinsalign.service.align.conventions import dcm_from_quat, misalignment, quat_from_rotvec
     from sinsalign.service.align.solvers import CentredWahba, RecursiveK
     rng = np.random.default_rng(3)

@@ -1,4 +1,5 @@
-"""The vehicle simulator (aided modes) against the exact inertial-frame identity of math §5.
+"""The vehicle simulator (aided modes) against the exact inertial-frame identity (docs/algorithms/odometer.md,
+"The identity").
 
 GIVEN a drive with turns and speed changes over the WGS-84 Earth, WHEN its exact increments go
 through the strapdown integrator, THEN C_b^n(0) α(t) = β(t) holds, with

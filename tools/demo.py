@@ -45,7 +45,7 @@ class DemoResult:
     converged: np.ndarray
     limit_deg: np.ndarray         # (3,)
     counters: dict[str, int]
-    aiding: str | None = None     # the aiding kind played (the §3.3 limit is then not the floor: no limit shown)
+    aiding: str | None = None     # the aiding kind played (the bias limit is then not the floor: no limit shown)
 
 
 AIDING_LATE_S = 0.2
@@ -114,7 +114,7 @@ def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: b
 
 
 def summary(result: DemoResult, scenario_name: str) -> str:
-    # an aided mode observes the biases the §3.3 limit assumes unknown: its error is shown against the truth alone
+    # an aided mode observes the biases the bias limit assumes unknown: its error is shown against the truth alone
     fixed = result.aiding is None
     lines = ["   t (s)  phase    error φ_U (°)" + ("  error − limit (°)" if fixed else "") + "   σ (°)   converged"]
     marks = [m for m in (10, 20, 30, 60, 100, 150, 200, 300, 450, 600) if m in set(np.round(result.t, 6))]

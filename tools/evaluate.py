@@ -1,8 +1,9 @@
 """Monte Carlo evaluation against simulated truth: tables, settling times, honesty of σ, plots.
 
 Errors are the misalignment φ = (φ_E, φ_N, φ_U) of the output attitude against the truth
-(alignment-math.md §1; φ_U ≈ heading error, estimate minus truth, clockwise). Each run's physical
-limit (§3.3) comes from its actual biases rotated into the n frame with the run's mean attitude.
+(docs/algorithms/conventions.md, "Misalignment φ and the heading error"; φ_U ≈ heading error, estimate minus
+truth, clockwise). Each run's physical limit (docs/algorithms/coarse.md, "Accuracy limits") comes from its
+actual biases rotated into the n frame with the run's mean attitude.
 """
 from __future__ import annotations
 

@@ -1,8 +1,9 @@
-"""The seed's phase 1 of transfer alignment (seed 002, alignment-math.md §7): an extended Kalman filter on the
-additive quaternion error model with quaternion matching. A comparison baseline for the closed-form phase 1
-(:mod:`.transfer`); offline (whole arrays in, a history out), pure numpy, float64.
+"""The seed's phase 1 of transfer alignment (seed 002): an extended Kalman filter on the additive quaternion
+error model with quaternion matching (docs/algorithms/transfer.md, "Phase 1 against the seed's own"). A
+comparison baseline for the closed-form phase 1 (:mod:`.transfer`); offline (whole arrays in, a history out),
+pure numpy, float64.
 
-Frames and units (alignment-math.md §1): n is ENU, the bodies are RFU; bs is the slave IMU's body, bm the
+Frames and units (docs/algorithms/conventions.md): n is ENU, the bodies are RFU; bs is the slave IMU's body, bm the
 master's. q_bs_n = [w, x, y, z] is the slave's attitude C_bs^n, q_bs_bm the mounting M = C_bs^bm, so the
 master's attitude is q_bm_n = q_bs_n ⊗ q_bs_bm*. Rates rad/s, velocity ENU m/s, time s.
 

@@ -2,7 +2,8 @@
 
 ``PtyPair`` makes the RS-422 link out of a pseudo-terminal: the daemon opens ``port_name`` with
 pyserial, the player writes into the master end. Both ends are put in raw mode at once
-(transport-notes.md §3: a cooked slave would echo and translate bytes). Playing paces frames by
+(until made raw a pty slave is cooked: it echoes bytes back to the master and translates some, CR to CRLF
+among them). Playing paces frames by
 their own timestamps at ``speed`` × real time, writing every frame that is due in one burst, and
 never blocks for long: a reader that stops reading makes :meth:`FramePlayer.play` stop with a
 timeout error instead of hanging.

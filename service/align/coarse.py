@@ -1,4 +1,4 @@
-"""Streaming inertial-frame coarse alignment (seed 000; alignment-math.md §3).
+"""Streaming inertial-frame coarse alignment (seed 000; docs/algorithms/coarse.md).
 
 Per sample: integrate C_{b(t)}^{b0} and α(t) (strapdown.py); every ``obs_interval_s`` take a
 vector pair from the observation source and fold it into the recursive K-matrix solver

@@ -1,4 +1,4 @@
-"""Compass (gyrocompass-loop) fine alignment on a base fixed in position (seed 001; math §4).
+"""Compass (gyrocompass-loop) fine alignment on a base fixed in position (seed 001; docs/algorithms/compass.md).
 
 The platform frame p is the computed navigation frame. It is kept as C_{b0}^{p}: b0 is the
 inertially frozen body frame of the coarse stage, so the body attitude C_{b(t)}^{b0} and the
@@ -18,7 +18,7 @@ with the commanded rate ω_c held over the step (computed from the state at its 
                                 ẏ = −K3 y + K4 / (s Ω cos L) · V_N
 
 Error model (φ as in conventions.py, C_b^p = (I − [φ×]) C_b^n): δV̇_E = −g φ_N, δV̇_N = g φ_E,
-φ̇ = −ω_ie^n × φ + ω_c − ε^n. Its characteristic polynomials are the ones of math §4, so the
+φ̇ = −ω_ie^n × φ + ω_c − ε^n. Its characteristic polynomials are the ones of docs/algorithms/compass.md, so the
 gains come from pole placement: level s³ + K1 s² + ω_s²(1+K2) s + g K3 = (s+σ)(s²+2σs+2σ²)
 (ξ = 0.707, ω_d = σ), azimuth s(s+K3)(s²+K1 s+ω_s²(1+K2)) + g K4 = (s²+2σs+2σ²)². We keep the
 integrator gain K3 with the factor σ (seed 001 prints it without).

@@ -1,6 +1,6 @@
 """Frames, attitude representations and unit conversions: the one place that pins them.
 
-Frames (see README "Conventions"):
+Frames (docs/algorithms/conventions.md):
     n   local-level navigation frame, East-North-Up (ENU)
     b   IMU body frame, Right-Front-Up (x right, y forward, z up)
     n0, b0  inertially frozen copies of n and b at the alignment start

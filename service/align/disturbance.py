@@ -1,4 +1,4 @@
-"""Motion that breaks the fixed-base model: a base that translates (alignment-math.md §3).
+"""Motion that breaks the fixed-base model: a base that translates (docs/algorithms/disturbance.md).
 
 Inertial-frame alignment of a base fixed in position explains α(t) = C_{b0}^{n0} β(t) with a
 constant C_{b0}^{n0}: rotation of any kind (swing, a knock, turning on the spot) is carried by

@@ -1,4 +1,5 @@
-"""WGS-84 Earth model in the ENU navigation frame (alignment-math.md §1, §3).
+"""WGS-84 Earth model in the ENU navigation frame (docs/algorithms/conventions.md, "Earth model (WGS-84)";
+the fixed site's turn and gravity integral: docs/algorithms/strapdown.md).
 
 Units are SI: latitude in rad, height in m, rates in rad/s, gravity in m/s².
 """
@@ -124,7 +125,8 @@ def earth_turn_integrals(dt_s: np.ndarray) -> np.ndarray:
 def beta_fixed(lat: float, gravity: float, dt_s: np.ndarray) -> np.ndarray:
     """β(t) = -∫_0^t C_{n(τ)}^{n0} g^n dτ = g E(t) Up for a fixed site, in n0 (ENU at t0) axes, m/s.
 
-    Closed form (alignment-math.md §3): the local up vector turns east about the Earth axis.
+    Closed form (docs/algorithms/strapdown.md, "The navigation frame's turn and the gravity integral"): the
+    local up vector turns east about the Earth axis.
     ``dt_s`` (...,) is the time since the alignment start; returns (..., 3).
     """
     t = np.asarray(dt_s, dtype=float)

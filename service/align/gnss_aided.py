@@ -1,4 +1,4 @@
-"""In-flight alignment from GNSS (seed 004, alignment-math.md §6): the VIF and PIF observation sources.
+"""In-flight alignment from GNSS (seed 004, docs/algorithms/gnss.md): the VIF and PIF observation sources.
 
 Both live in the inertial frame n0 (the navigation frame at the first fix's place, frozen in
 inertial space at the alignment start). GNSS gives the antenna's position and velocity;
@@ -209,7 +209,7 @@ class GnssVelocitySource(GnssSource):
     sigma_factor = 1.5
     """The fit's σ assumes white residuals; the IMU noise integrated into α is a random walk, so they are
     not. Seed-004 Monte Carlo (10 seeds, 10-300 s): |error|/σ had median 0.93 and 90th percentile 2.46
-    (84 % inside 2σ); this factor brings it to the honest side (README, "In flight with GNSS")."""
+    (84 % inside 2σ); this factor brings it to the honest side (docs/algorithms/gnss.md, "The coarse solver")."""
 
     def _pairs(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, C_b_b0: np.ndarray, aid: np.ndarray,
                C_n_n0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,4 +1,5 @@
-"""The noise the data show, from the residual of the fixed-base model itself (alignment-math.md §3).
+"""The noise the data show, from the residual of the fixed-base model itself (docs/algorithms/compass.md, "Honest σ";
+docs/field-data.md, "The noise part of σ comes from the residual").
 
 The heading of inertial-frame alignment comes from α(t) = C_{n0}^{b0} β(t) over minutes, so its error is set by
 how the error of α behaves over seconds to minutes, not by what one increment carries. A sample-level meter reads

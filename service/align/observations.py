@@ -1,4 +1,4 @@
-"""Observation sources of inertial-frame alignment: vector pairs b_k = C_n^b(0) r_k (math §3).
+"""Observation sources of inertial-frame alignment: vector pairs b_k = C_n^b(0) r_k (docs/algorithms/coarse.md).
 
 A source turns the integrator's output at the observation epochs (α(t) and C_{b(t)}^{b0}) into
 an observation vector b in b0 axes and a reference vector r in n0 axes, and knows how the

@@ -1,4 +1,4 @@
-"""Sensor grade, the observation-noise model of OPREQ, and the accuracy limits (math §3.2, §3.3).
+"""Sensor grade, the observation-noise model of OPREQ, and the accuracy limits (docs/algorithms/coarse.md).
 
 A :class:`SensorGrade` holds datasheet 1-sigma figures in SI units. From it follow
 - μ(t), the per-axis variance of the normalised observation b = α/|α| (OPREQ's noise model);
@@ -79,7 +79,7 @@ class SensorGrade:
 
 
 def physical_limit(acc_bias_n: np.ndarray, gyro_bias_n: np.ndarray, lat: float, gravity: float) -> np.ndarray:
-    """Misalignment φ = (φ_E, φ_N, φ_U) in rad left by n-frame biases (alignment-math.md §3.3).
+    """Misalignment φ = (φ_E, φ_N, φ_U) in rad left by n-frame biases (docs/algorithms/coarse.md, "Accuracy limits").
 
     φ_E = -∇_N/g, φ_N = ∇_E/g, φ_U = ∇_E tan L / g - ε_E / (Ω cos L).
     ``acc_bias_n`` (m/s²) and ``gyro_bias_n`` (rad/s) are (..., 3) ENU vectors.
@@ -99,7 +99,7 @@ class AttitudeSigma:
 
 
 def bias_limit_rad(grade: SensorGrade, lat: float, gravity: float) -> tuple[float, float]:
-    """1-sigma (heading, level) misalignment in rad that the datasheet biases leave (§3.3 limit)."""
+    """1-sigma (heading, level) misalignment in rad that the datasheet biases leave (the bias limit)."""
     heading = np.hypot(np.tan(lat) * grade.acc_bias_ms2 / gravity, grade.gyro_bias_rad_s / (OMEGA_IE * np.cos(lat)))
     return float(heading), grade.acc_bias_ms2 / gravity
 
@@ -107,7 +107,7 @@ def bias_limit_rad(grade: SensorGrade, lat: float, gravity: float) -> tuple[floa
 def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:
     """1-sigma error of inertial-frame coarse alignment after ``elapsed_s`` seconds.
 
-    Bias part (the §3.3 limit with 1-sigma biases) plus the noise part of a least-squares fit
+    Bias part (the bias limit with 1-sigma biases) plus the noise part of a least-squares fit
     of the α history: in the north channel α_N(t) = g t δθ + ½ g Ω cos L t² δψ + noise, so a
     white accelerometer noise of density q = VRW² leaves Var(δψ) = 12 q / (g Ω cos L)² / T³ and
     Var(δθ) = 4 q / (g² T), while a gyro random walk gives Var(δψ) = 1.2 N² / (Ω cos L)² / T.
@@ -148,7 +148,8 @@ def auto_solver(grade: SensorGrade, lat: float, gravity: float, heading_sigma_de
     noise by the time that noise is down to ``heading_sigma_deg``, "opreq" where the accelerometer's white noise does.
 
     OPREQ cannot weigh a walk (its errors are the same growing tilt in every later vector) and stays above the walk's
-    floor; GLS whitens it and sits on the floor, but moves more where white noise dominates (README "GLS"). The two
+    floor; GLS whitens it and sits on the floor, but moves more where white noise dominates (docs/results.md,
+    "GLS"). The two
     variances of :func:`heading_noise_variances` are equal at T× = √(10 q) / (N g) and both fall with T, the
     accelerometer's faster: the walk dominates at the threshold if the noise σ at T× is still above it.
     """

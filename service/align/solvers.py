@@ -1,4 +1,4 @@
-"""Attitude determination from vector pairs b = A r with a constant A (alignment-math.md §3.1-3.2).
+"""Attitude determination from vector pairs b = A r with a constant A (docs/algorithms/coarse.md).
 
 All solvers keep O(1) state: the 4×4 Davenport matrix K, its weight m and the scalar trace of
 the covariance P of K's error (Φ = I and isotropic Q make the traces enough for the gain).
@@ -16,7 +16,7 @@ the weight its information earns.
 :class:`CentredWahba` ("centred") solves a different problem on the same pairs, unnormalised:
 b_k = A r_k + c with an unknown constant c common to all pairs (Kabsch). Aided modes need it:
 their α holds the first aiding sample V^b(0) (or V^n(0)) as such a constant, and one noisy
-sample would otherwise tilt every pair alike (alignment-math.md §5, "a trap").
+sample would otherwise tilt every pair alike (docs/algorithms/odometer.md, "Centred solver").
 
 Matrix convention: K = [[S - σI, z], [zᵀ, σ]] with the vector part first; its top eigenvector
 q̄ = [q_v, q_4] gives A(q̄) = (q_4² - q_v·q_v) I + 2 q_v q_vᵀ - 2 q_4 [q_v×]. With b in body
@@ -61,8 +61,8 @@ def request_noise(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> np.ndarray:
 
     V = δK(δb, r) is the Davenport matrix of the rank-one B = δb rᵀ, and such a matrix squares
     to |δb|² |r|² I₄; hence R = μ tr(I - b bᵀ) |r|² I₄ = 2μ I₄ for unit vectors, exactly (a test
-    checks it against the sample covariance). The R11 block quoted in alignment-math.md §3.2
-    (after Choukroun) is not what this V gives; only tr R enters the gain, and there the two
+    checks it against the sample covariance). The R11 block quoted after Choukroun (docs/algorithms/coarse.md,
+    "Recursive K: REQUEST and Optimal-REQUEST") is not what this V gives; only tr R enters the gain, and there the two
     differ by a near-constant factor that cancels in ρ*.
     """
     scale = np.asarray(mu, dtype=float) * (3.0 - np.einsum("mi,mi->m", b, b)) * np.einsum("mi,mi->m", r, r)
@@ -389,7 +389,7 @@ class WhitenedWahba(CentredWahba):
     e_k (white, variance S_k). Being linear, the same filter run on the Δb and on the Δr sequences
     gives pairs ẽb_k = A ẽr_k + e_k exactly; their weighted Wahba (weights 1/S_k) is the maximum-
     likelihood attitude. The gyro bias ramps θ like a heading error ramps the data, so the result
-    keeps the §3.3 limit.
+    keeps the bias limit (docs/algorithms/coarse.md, "Accuracy limits").
 
     Memory O(1): the last epoch and α, β; the two filters' states (3, 6); the filter covariance.
     ``prepare`` runs the filters (sequentially: same bits however the pairs are grouped into calls);

@@ -1,4 +1,4 @@
-"""Stored-data repeated navigation (seed 001 §2.3, "Scheme 2"; alignment-math.md §4).
+"""Stored-data repeated navigation (seed 001 §2.3, "Scheme 2"; docs/algorithms/compass.md, "Stored data").
 
 The first ``T_s`` seconds of control steps are kept (the b0-frame velocity increment Δα and the
 step length of each: 4 floats per step, a fixed array sized at start, never more). When they are

@@ -1,4 +1,4 @@
-"""Strapdown integration in the inertially frozen body frame b0 (alignment-math.md §2).
+"""Strapdown integration in the inertially frozen body frame b0 (docs/algorithms/strapdown.md).
 
 The integrator keeps O(1) state: the attitude C_{b(t)}^{b0} as a quaternion, the specific-force
 integral α(t) = ∫ C_{b(τ)}^{b0} f^b dτ (m/s, b0 axes) and the previous increments for the

@@ -1,7 +1,8 @@
 """The accelerometer bias seen through a swinging body: estimated and taken out of α (fixed site, seed 000).
 
 An accelerometer bias ∇ is fixed in body axes. On a static base it turns with the Earth like gravity does,
-and the attitude fit takes it as a tilt: the level and heading limits of alignment-math §3.3. On a
+and the attitude fit takes it as a tilt: the level and heading limits (docs/algorithms/coarse.md, "Accuracy
+limits"). On a
 swinging base it also turns with the swing, and its integral in α(t) = ∫ C_b^{b0} f^b dτ gains a term
 D(t) ∇, D(t) the part of M(t) = ∫ C_b^{b0} dτ that a static base does not have: bounded, but with a
 non-zero mean (a swing that starts at its centre integrates to (1 − cos ωt)/ω). The fit takes that term

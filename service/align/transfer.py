@@ -1,4 +1,4 @@
-"""Transfer alignment against a master INS (seed 002, alignment-math.md §7): the large-angle phase 1.
+"""Transfer alignment against a master INS (seed 002, docs/algorithms/transfer.md): the large-angle phase 1.
 
 The unknown is the mounting M = C_bs^bm (slave to master body axes), of any size. Let n0 be the
 navigation frame at the first master epoch t_f frozen in inertial space (as the GNSS sources'),

@@ -1,4 +1,4 @@
-"""Inertial-frame alignment on a moving base aided by body-frame velocity (seed 003; math §5).
+"""Inertial-frame alignment on a moving base aided by body-frame velocity (seed 003; docs/algorithms/odometer.md).
 
 Exact identity: C_b^n(0) α(t) = β(t) with
 α = ∫ C_b^{b0} f^b dt − C_b^{b0} V^b(t) + V^b(0) and β = ∫ C_n^{n0} (−g^n + ω_ie^n × V^n) dt

@@ -6,7 +6,7 @@ Euler profiles (heading with turns, pitch, roll), speed from a profile with rais
 follows from V^n = C_b^n V^b, integrated by RK4 on a fine grid and read back by cubic Hermite
 interpolation (its derivative is V^n itself), so the error of the truth is far below any sensor's.
 
-Sensor truth (alignment-math.md §1 and §5):
+Sensor truth (docs/algorithms/conventions.md; docs/algorithms/odometer.md, "The identity"):
 ω_ib^b = ω_nb^b + C_n^b (ω_ie^n + ω_en^n),
 f^b = C_n^b [V̇^n + (2 ω_ie^n + ω_en^n) × V^n − g^n],  V̇^n = C_b^n (ω_nb^b × V^b + V̇^b),
 with ω_en^n = [−V_N/(R_M+h), V_E/(R_N+h), V_E tan L/(R_N+h)] and normal gravity g(L, h).
