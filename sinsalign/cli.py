@@ -383,19 +383,19 @@ def cmd_bench(args: argparse.Namespace) -> int:
 
 
 def cmd_fuzz(args: argparse.Namespace) -> int:
-    from sinsalign.tools.fuzz import fuzz_messages, fuzz_serial
-    serial = fuzz_serial(args.inputs, args.seed)
-    print(f"serial decoder: {serial.inputs:,} random inputs ({serial.bytes_fed / 1e6:.1f} MB) in "
-          f"{serial.seconds:.1f} s, "
-          f"{serial.frames_out:,} frames out, {serial.escaped} exceptions escaped")
-    print("  counters: " + ", ".join(f"{k} {v:,}" for k, v in serial.counters.items() if v))
-    msgs = fuzz_messages(max(args.inputs // 5, 1), args.seed)
-    print(f"msgpack decoders: {msgs.inputs:,} inputs × 4 decoders in {msgs.seconds:.1f} s, "
-          f"{msgs.counters['rejected']:,} rejected with a reason, {msgs.escaped} exceptions escaped")
-    for report in (serial, msgs):
-        if report.first_failure:
-            print(f"first failure: {report.first_failure}", file=sys.stderr)
-    return 1 if serial.escaped or msgs.escaped else 0
+    from sinsalign.tools.fuzz import fault_table, progress_bar, run_all
+    from sinsalign.tools.stamp import stamp
+    provenance = stamp(args.argv)   # the commit the run starts on
+    with progress_bar(sys.stderr.isatty() and not args.no_progress) as progress:
+        tallies = run_all(args.inputs, args.values, args.seed, progress)
+    table = fault_table(tallies, provenance, args.seed)
+    print(table)
+    if args.out:
+        Path(args.out).write_text(table + "\n")
+    for tally in tallies:
+        if tally.first_escape:
+            print(f"first escape of {tally.first_escape}", file=sys.stderr)
+    return 1 if any(tally.escaped for tally in tallies) else 0
 
 
 def cmd_soak(args: argparse.Namespace) -> int:
@@ -553,11 +553,22 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how far behind the IMU frames the aiding epochs come (s of data, default 0.2)")
     p.set_defaults(func=cmd_bench)
 
-    p = sub.add_parser("fuzz", help="long random-input run of the serial and msgpack decoders",
-                       description="Feed random bytes, mutated and truncated frames into the serial decoder and "
-                       "random or mutated msgpack into the message decoders; exit 1 if any exception escapes.")
-    p.add_argument("--inputs", type=POSITIVE_INT, default=1_000_000, help="random inputs to the serial decoder (1e6)")
+    p = sub.add_parser("fuzz", help="hostile input into every input class; a Markdown fault table",
+                       description="Feed random and absurd input into every input class: serial bytes, Zenoh "
+                       "msgpack messages, the sample gate and pipeline (the daemon's ingest), aiding epochs, the "
+                       "replay of IMU and aiding logs, the configuration (mappings and TOML files). Prints a "
+                       "Markdown table (stamped with the command and commit) of what was accepted, dropped and "
+                       "counted, refused with the documented error, or escaped (any other exception); exit 1 if "
+                       "anything escaped, its input and traceback on stderr.")
+    p.add_argument("--inputs", type=POSITIVE_INT, default=1_000_000, metavar="N",
+                   help="random pieces into the serial decoder; a fifth as many msgpack messages and aiding epochs "
+                   "(default 1000000)")
+    p.add_argument("--values", type=POSITIVE_INT, default=4_000_000, metavar="N",
+                   help="values generated for the sample stream (35 %%), the replayed logs (45 %%) and the "
+                   "configuration (20 %%) (default 4000000)")
     p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--out", metavar="FILE", help="also write the table to FILE")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (default: on a terminal)")
     p.set_defaults(func=cmd_fuzz)
 
     p = sub.add_parser("soak", help="hours of simulated data through the live daemon: RSS and latency over time",
