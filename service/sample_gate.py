@@ -3,9 +3,10 @@
 The strapdown integration needs every increment: a lost sample removes a slice of rotation and
 velocity from the integrals, and a clipped one puts a wrong one in. So, per decoded sample:
 
-- an increment beyond what the sensor can measure (|Δθ| or |Δv| above ``max_dtheta_rad`` / ``max_dv_mps``, its
-  stated range over twice the sample interval) → dropped like a bad frame (``implausible``), and bridged as a
-  missing sample; a finite 1e308 would otherwise reach the estimators;
+- a time stamp beyond any clock (|t| above 1e10 s), or an increment beyond what the sensor can measure (|Δθ| or
+  |Δv| above ``max_dtheta_rad`` / ``max_dv_mps``, its stated range over twice the sample interval) → dropped like a
+  bad frame (``implausible``), and bridged as a missing sample; a finite 1e308 would otherwise reach the
+  estimators;
 - time not after the previous sample → dropped (``time_not_increasing``); but once ``max_bridge_samples`` + 1
   samples in a row are behind the last one and run on among themselves, the IMU's clock has gone back (a sensor
   restarted, or the last sample's time was wild): the alignment restarts from them (``clock_resets``);
@@ -24,6 +25,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..protocol.counters import Counters
+from ..protocol.imu_log import MAX_TIME_S
 
 Sample = tuple[float, tuple, tuple, int, bool]
 """A decoded IMU sample: t (s), Δθ (3,) rad, Δv (3,) m/s, status word, saturated (a value at full scale)."""
@@ -73,6 +75,10 @@ class SampleGate:
         rows: list[np.ndarray] = []
         for t, dtheta, dv, status, saturated in samples:
             row = np.array((t, *dtheta, *dv), dtype=float)
+            if not abs(t) <= MAX_TIME_S:
+                self.counters.implausible += 1
+                self.last_error = f"sample at t = {t:.6g} s: no IMU clock reads that (|t| > {MAX_TIME_S:g} s): dropped"
+                continue
             # a frame flagged saturated is the sensor at full scale (a restart, below); beyond it, no sensor's value
             if not saturated and (np.abs(row[1:4]).max() > self.max_dtheta_rad
                                   or np.abs(row[4:7]).max() > self.max_dv_mps):

@@ -15,6 +15,8 @@ import numpy as np
 import pytest
 import zenoh
 from daemon_harness import RunningDaemon, daemon_config, free_port
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import AIDING_KIND_CODES, MSG_AIDING, AidingPayloadError, Frame, decode_aiding
 from sinsalign.service.ingest import Ingest
@@ -179,3 +181,34 @@ def test_a_peer_publishing_absurd_samples_on_the_imu_key_does_not_stop_the_daemo
     assert counters["internal_errors"] == 0 and counters["estimator_restarts"] == 0
     assert counters["implausible"] == len(range(200, len(t), 400))
     assert all(math.isfinite(a["heading_deg"]) for a in run.subscriber.attitude)
+
+
+FLOATS = st.one_of(st.floats(allow_nan=False, allow_infinity=False), st.sampled_from([1e308, -1e308, 5e-324, -0.0]))
+FAULTS = st.lists(st.tuples(st.integers(0, 399), st.integers(0, 6), FLOATS), max_size=12)
+"""(sample, column, value) replacements in the first 2 s of a 4-s stream: column 0 the time, 1-3 Δθ, 4-6 Δv."""
+
+
+def run_with_faults(tmp_path, data, faults) -> None:
+    t, dtheta, dv = (a[:800].copy() for a in data)
+    rows = np.column_stack((t, dtheta, dv))
+    for k, column, value in faults:
+        rows[k, column] = value
+    ingest = live_ingest(tmp_path, [])
+    records = feed_in_pieces(ingest, as_samples(rows[:, 0], rows[:, 1:4], rows[:, 4:7]), piece=37)
+    assert all(finite_record(r) for r in records)
+    assert records and records[-1].t >= t[-1] - 1.0     # the last 2 s are clean: the alignment publishes again
+    assert ingest.all_counters()["estimator_restarts"] == 0
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(faults=FAULTS)
+def test_absurd_values_anywhere_in_a_stream_never_stop_the_alignment(tmp_path, data, faults):
+    run_with_faults(tmp_path, data, faults)
+
+
+@pytest.mark.slow
+@settings(max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(faults=FAULTS)
+def test_absurd_values_anywhere_in_a_stream_never_stop_the_alignment_long(tmp_path, data, faults):
+    """1000 streams of 800 samples: 5.6·10⁶ values through the gate and the pipeline, up to 12 of them absurd."""
+    run_with_faults(tmp_path, data, faults)
