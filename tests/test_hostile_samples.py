@@ -90,12 +90,19 @@ def test_a_clock_that_goes_back_restarts_the_alignment_and_a_wild_time_stamp_cos
     assert counters["clock_resets"] == 1 and counters["restarts"] == 1
     assert any("time went back" in r for r in reports)
     assert_goes_on(records, restarted[-1])
-    # one stamp 1e12 s on: the stream comes back behind it
+    # one stamp 1e9 s on (a clock could read it): the stream comes back behind it, one restart
     wild = t.copy()
-    wild[half] = 1e12
+    wild[half] = 1e9
     ingest = live_ingest(tmp_path, [])
     records = feed_in_pieces(ingest, as_samples(wild, dtheta, dv))
     assert ingest.all_counters()["clock_resets"] == 1
+    assert_goes_on(records, t[-1])
+    # one stamp 1e12 s on, beyond any clock: dropped and bridged like an absurd increment
+    wild[half] = 1e12
+    ingest = live_ingest(tmp_path, [])
+    records = feed_in_pieces(ingest, as_samples(wild, dtheta, dv))
+    counters = ingest.all_counters()
+    assert (counters["implausible"], counters["clock_resets"], counters["restarts"]) == (1, 0, 0)
     assert_goes_on(records, t[-1])
 
 
