@@ -474,9 +474,13 @@ def stream_config(scenario: Any) -> Config:
     return config_from_mapping({**daemon_sections(scenario), "output": {"period_s": STREAM_OUTPUT_PERIOD_S}})
 
 
-def _jumps(rng: np.random.Generator, n: int) -> np.ndarray:
-    """``n`` time jumps (s): forward or back, 1 ms to 1e12 s, every scale equally likely."""
-    return rng.choice((-1.0, 1.0), n) * 10.0 ** rng.uniform(*TIME_JUMP_EXPONENTS, n)
+CLOCK_STEP_EXPONENTS = (-3.0, 9.0)
+"""A clock set anew jumps by 1 ms to 1e9 s: ten steps stay within the 1e10 s any clock can read."""
+
+
+def _jumps(rng: np.random.Generator, n: int, exponents: tuple[float, float] = TIME_JUMP_EXPONENTS) -> np.ndarray:
+    """``n`` time jumps (s): forward or back, 10**exponents[0] to 10**exponents[1] s, every scale equally likely."""
+    return rng.choice((-1.0, 1.0), n) * 10.0 ** rng.uniform(*exponents, n)
 
 
 @dataclass(frozen=True, slots=True)
@@ -529,9 +533,10 @@ def _plant_value_faults(rng: np.random.Generator, values: np.ndarray, faulted: d
 
 
 def _faulted_times(rng: np.random.Generator, t: np.ndarray, faulted: dict[str, np.ndarray]) -> np.ndarray:
-    """The time stamps (s) with every one from a ``time_step`` on shifted, and each ``wild_stamp`` alone."""
+    """The time stamps (s) with every one from a ``time_step`` on shifted (a clock set anew: it still reads a time,
+    within 1e9 s), and each ``wild_stamp`` alone (up to 1e12 s: beyond any clock, dropped)."""
     shifts = np.zeros(len(t))
-    shifts[faulted["time_step"]] = _jumps(rng, len(faulted["time_step"]))
+    shifts[faulted["time_step"]] = _jumps(rng, len(faulted["time_step"]), CLOCK_STEP_EXPONENTS)
     t = t + np.cumsum(shifts)
     t[faulted["wild_stamp"]] += _jumps(rng, len(faulted["wild_stamp"]))
     return t
