@@ -17,12 +17,11 @@ from ..protocol import messages
 from ..protocol.counters import Counters
 from ..protocol.results import ResultRecord
 from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
-from .aided_pipeline import build_pipeline
 from .aiding import AidingTrack, AidingWait
 from .align.conventions import DEG, G_TO_MS2
 from .align.earth import Site
 from .config import Config
-from .pipeline import AlignmentPipeline
+from .pipeline import AlignmentPipeline, build_pipeline
 from .restarting import RestartingPipeline
 from .sample_gate import Sample, SampleGate
 

@@ -6,28 +6,27 @@ samples at whole multiples of the output period), the phase and the ``converged`
 """
 from __future__ import annotations
 
+from collections.abc import Callable, Iterable
 from dataclasses import replace
+from typing import Protocol
 
 import numpy as np
 
 from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment
-from .align.compass import GainSchedule
-from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm, with_heading_of
+from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.noise_check import VERDICT_STEPS, NoiseMeter
-from .align.observations import FixedSiteSource
-from .align.sensor_model import ESTIMATOR_EFFICIENCY, SensorGrade, auto_solver, bias_limit_rad
-from .align.solvers import CentredWahba, RecursiveK, make_solver
-from .align.swing_bias import SwingBias
+from .align.sensor_model import SensorGrade, auto_solver
+from .align.solvers import CentredWahba, RecursiveK
 from .config import Config, ConfigError
+from .modes import MODES
+from .modes.fixed_base import FixedBase
+from .records import result_record
 
-INITIAL_TILT_SIGMA_DEG = 0.1
-INITIAL_HEADING_SIGMA_DEG = 1.5
-"""1-sigma errors assumed for an attitude given from outside (compass alone, seed 001's start)."""
 AID_EPOCH_COLUMN = IMU_WIDTH
 """The layout of the samples the pipeline holds: the IMU row (t, Δθ (3), Δv (3)); an aided pipeline's then the aiding
 epoch's number and the aiding values (``aid_width``)."""
@@ -40,36 +39,6 @@ def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> Sen
     return SensorGrade.from_datasheet(**figures)
 
 
-def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, threshold_deg: float) -> ResultRecord:
-    """The pinned result of one solution, stamped with its output epoch."""
-    heading, pitch, roll = euler_from_dcm(dcm_from_quat(solution.q_b_n))
-    heading_deg = float(heading / DEG) % 360.0
-    q = tuple(float(c) for c in solution.q_b_n / np.linalg.norm(solution.q_b_n))
-    return ResultRecord(t=t_epoch, phase=phase, q=q, pitch_deg=float(pitch / DEG), roll_deg=float(roll / DEG),
-                        heading_deg=heading_deg if heading_deg < 360.0 else 0.0,
-                        heading_sigma_deg=solution.heading_sigma_deg, level_sigma_deg=solution.level_sigma_deg,
-                        converged=bool(solution.heading_sigma_deg <= threshold_deg), rho=float(solution.rho),
-                        trace_P=float(solution.trace_P), n_obs=solution.n_obs)
-
-
-def smaller_sigma_solution(coarse: AttitudeSolution, C_fine: np.ndarray, fine_heading_sigma_deg: float,
-                           fine_level_sigma_deg: float) -> AttitudeSolution:
-    """The output once the loops run beside the coarse stage (which runs on): the level of whichever of the two
-    claims the smaller level σ, the heading of whichever claims the smaller heading σ, each with its σ. So the fine
-    stage never makes either worse than the coarse stage alone would give (a 600-s least-squares heading can beat a
-    narrow loop, while the loops hold the level that the inertial-frame fit lets drift by ε·T)."""
-    C_coarse = dcm_from_quat(coarse.q_b_n)
-    level_fine = fine_level_sigma_deg < coarse.level_sigma_deg
-    heading_fine = fine_heading_sigma_deg < coarse.heading_sigma_deg
-    if not level_fine and not heading_fine:
-        return coarse
-    C_level = C_fine if level_fine else C_coarse
-    C_b_n = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
-    return replace(coarse, q_b_n=quat_from_dcm(C_b_n),
-                   heading_sigma_deg=min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
-                   level_sigma_deg=min(fine_level_sigma_deg, coarse.level_sigma_deg))
-
-
 def _fold_until(solver: RecursiveK | CentredWahba, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int,
                 sample: int) -> int:
     """Fold the prepared observations taken at samples up to ``sample``; returns how many are folded."""
@@ -79,8 +48,36 @@ def _fold_until(solver: RecursiveK | CentredWahba, due: np.ndarray, dK: np.ndarr
     return upto
 
 
+class Mode(Protocol):
+    """What a mode declares (one file per mode under service/modes/, built with its pipeline): the aiding it takes
+    (``aid_kind``, ``aid_width`` values per sample; ``gyro_rate``: the gyro rate appended to them), whether a
+    translating base is a disturbance and whether σ takes the noise the data show, its coarse stage (observation
+    source, solver, σ model) and fine stage, what each control step does (measurements, hand-over), each output
+    epoch's record, its counters and a line for the operator."""
+
+    aid_kind: str
+    aid_width: int
+    checks_translation: bool
+    checks_noise: bool
+    gyro_rate: bool
+
+    def make_coarse(self) -> InertialCoarseAlignment: ...
+
+    def make_fine(self) -> object | None: ...
+
+    def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
+             aid: np.ndarray | None, fresh: bool) -> None: ...
+
+    def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+               coarse: InertialCoarseAlignment) -> ResultRecord: ...
+
+    def counters(self) -> dict[str, int]: ...
+
+    def stages_text(self) -> str: ...
+
+
 class AlignmentPipeline:
-    """Coarse then fine alignment of a base fixed in position, emitting records at the output epochs.
+    """Coarse then fine alignment, emitting records at the output epochs; what the stages are is the mode's.
 
     Samples are processed in canonical blocks of ``block_samples`` (one compass control step),
     counted from the first sample; an incomplete block waits for its last sample. Every block
@@ -99,20 +96,12 @@ class AlignmentPipeline:
         running them at once (offline).
     initial_q_b_n : start the compass loops at once from this attitude at the first sample
         (compass alone, for evaluation), skipping the coarse stage.
+    mode : the mode's class (:class:`Mode`, built with this pipeline); the fixed base by default.
     """
 
-    aid_width = 0
-    """Aiding values per sample that :meth:`process` takes (0: none; aided pipelines set it)."""
-    aid_kind = ""
-    """The aiding kind of those values (``odo``, ``gnss``, ``master``): the prefix of its status counters."""
-    checks_translation = True
-    """Whether a base that translates is a disturbance (not for a base meant to move)."""
-    checks_noise = True
-    """Whether σ takes the noise the fixed-base residual shows (service/align/noise_check.py; a moving vehicle's
-    σ comes from its fits and filters)."""
-
     def __init__(self, config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
-                 live: bool = False, initial_q_b_n: np.ndarray | None = None) -> None:
+                 live: bool = False, initial_q_b_n: np.ndarray | None = None,
+                 mode: Callable[[AlignmentPipeline], Mode] = FixedBase) -> None:
         a, f = config.alignment, config.fine
         self.config = config
         self.sample_period_s = 1.0 / rate_hz
@@ -126,16 +115,18 @@ class AlignmentPipeline:
         self.solver_name = (auto_solver(self.grade, site.lat, site.gravity, a.converged_heading_sigma_deg)
                             if a.solver == "auto" else a.solver)
         self.sigma_grade = self.grade   # the datasheet's, until the data show their own noise (noise_check.py)
-        self.noise_unchecked = self.checks_noise   # σ still waits for the meter's first verdict
         self.block_samples = max(1, round(f.control_interval_s * rate_hz))
-        self._live = live
-        self._with_fine = f.enabled or initial_q_b_n is not None
+        self.live = live
+        self.with_fine = f.enabled or initial_q_b_n is not None
+        self.initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
+        self.mode = mode(self)
+        self.noise_unchecked = self.checks_noise   # σ still waits for the meter's first verdict
+        self._dtheta_last = np.zeros(3)   # the last sample's Δθ (rad): the gyro rate of the next one's aid
         self._start_estimators()
         self.disturbances = 0
         self.last_disturbance: str | None = None
         self.last_notice: str | None = None   # why the alignment cannot go on as configured, for the operator
         self._disturbed_until = -np.inf   # a restarted alignment is disturbed until then
-        self._initial_C_b_n = None if initial_q_b_n is None else dcm_from_quat(np.asarray(initial_q_b_n, float))
         self._pending = np.empty((self.block_samples, AID_EPOCH_COLUMN + (1 + self.aid_width if self.aid_width else 0)))
         self._n_pending = 0
         self._epoch_count: int | None = None
@@ -143,8 +134,8 @@ class AlignmentPipeline:
 
     def _start_estimators(self, t_start: float | None = None) -> None:
         """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
-        self.coarse = self._make_coarse()
-        self.fine = self._make_fine()
+        self.coarse = self.mode.make_coarse()
+        self.fine = self.mode.make_fine()
         self._apply_sigma_grade()
         self._alpha_step = np.zeros(3)
         self._t_step = t_start
@@ -158,14 +149,40 @@ class AlignmentPipeline:
         self.noise = (NoiseMeter(self.config.alignment.obs_interval_s, self.site.lat, self.site.gravity)
                       if self.checks_noise else None)
 
+    @property
+    def aid_width(self) -> int:
+        """Aiding values per sample that :meth:`process` takes (0: none)."""
+        return self.mode.aid_width
+
+    @property
+    def aid_kind(self) -> str:
+        """The aiding kind of those values (``odo``, ``gnss``, ``master``): the prefix of its status counters."""
+        return self.mode.aid_kind
+
+    @property
+    def checks_translation(self) -> bool:
+        """Whether a base that translates is a disturbance (not for a base meant to move)."""
+        return self.mode.checks_translation
+
+    @property
+    def checks_noise(self) -> bool:
+        """Whether σ takes the noise the fixed-base residual shows (service/align/noise_check.py; a moving vehicle's
+        σ comes from its fits and filters)."""
+        return self.mode.checks_noise
+
+    @property
+    def t_step(self) -> float:
+        """The time (s) of the last control step's end."""
+        return self._t_step
+
     def aiding_counters(self) -> dict[str, int]:
         """What the estimators made of the aiding (none without): coarse observations due before the aid's first
         value (``<kind>_observations_awaiting_aid``, a wait) and after it without one (``…_unaided_observations``,
-        a dropout); aided pipelines add their estimators' counts."""
+        a dropout), then the mode's own counts."""
         if not self.aid_width:
             return {}
         return {f"{self.aid_kind}_observations_awaiting_aid": self.coarse.observations_awaiting_aid,
-                f"{self.aid_kind}_unaided_observations": self.coarse.unaided_observations}
+                f"{self.aid_kind}_unaided_observations": self.coarse.unaided_observations, **self.mode.counters()}
 
     @property
     def awaiting_aid(self) -> bool:
@@ -178,32 +195,8 @@ class AlignmentPipeline:
         self.coarse.aid_started = self.coarse.aid_started or previous.coarse.aid_started
 
     def stages_text(self) -> str:
-        """The stages that run, for the operator's log: the coarse solver ("auto" says what it chose), the swing-bias
-        fit and the compass stage; an aided pipeline names its aid (its stages are its own)."""
-        if self.aid_width:
-            return f"{self.aid_kind}-aided alignment"
-        a = self.config.alignment
-        solver = self.solver_name
-        if a.solver == "auto":
-            solver += f" (auto: {'gyro walk' if solver == 'gls' else 'accelerometer noise'} dominates)"
-        return (f"coarse solver {solver}, swing-bias fit {'on' if a.swing_bias else 'off'}, "
-                f"compass stage {'on' if self._with_fine else 'off'}")
-
-    def _make_coarse(self) -> InertialCoarseAlignment:
-        a = self.config.alignment
-        solver = make_solver(self.solver_name, a.request_rho, self.grade, self.site.gravity, a.disturbance_velocity_mps)
-        swing_bias = (SwingBias(self.site.lat, self.grade.acc_bias_ms2, self.grade.acc_vrw_ms_rts) if a.swing_bias
-                      else None)
-        return InertialCoarseAlignment(FixedSiteSource(self.site), self.grade, solver, self.sample_period_s,
-                                       a.obs_interval_s, a.disturbance_velocity_mps, swing_bias)
-
-    def _make_fine(self) -> FineAlignment | None:
-        if not self._with_fine:
-            return None
-        f = self.config.fine
-        return FineAlignment(self.site, self.grade, GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
-                             self.block_samples * self.sample_period_s, f.stored_data_s, f.stored_pairs,
-                             f.live_pass_steps if self._live else None)
+        """The stages that run, for the operator's log (the mode's words)."""
+        return self.mode.stages_text()
 
     def _epoch_counts(self, t: np.ndarray) -> np.ndarray:
         # the sample within half a period of k·P carries epoch k
@@ -264,6 +257,11 @@ class AlignmentPipeline:
         self._emitted_count = int(counts[new[-1]])
 
     def _process_blocks(self, samples: np.ndarray, records: list[ResultRecord]) -> None:
+        """Whole blocks (:meth:`_process_block_rows`); then their last Δθ is the one before the next sample's."""
+        self._process_block_rows(samples, records)
+        self._dtheta_last = samples[-1, 1:4].copy()
+
+    def _process_block_rows(self, samples: np.ndarray, records: list[ResultRecord]) -> None:
         """Whole blocks: integrate them at once, then per block fold the observations, emit, control."""
         M = self.block_samples
         t = samples[:, 0]
@@ -322,8 +320,17 @@ class AlignmentPipeline:
             self.fine.loops.grade = self.sigma_grade
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
-        """The aiding values of the samples (N, ``aid_width``), None without aiding."""
-        return samples[:, AID_EPOCH_COLUMN + 1:] if self.aid_width else None
+        """The aiding values of the samples (N, ``aid_width``), None without aiding; with the mode's ``gyro_rate``
+        the gyro rate ω_ib^b (3, rad/s) appended, from the increments (1.5 Δθ_k − 0.5 Δθ_{k−1}) / T: the rate at the
+        sample's end, second-order accurate (lever arms, rotation pairs)."""
+        if not self.aid_width:
+            return None
+        aid = samples[:, AID_EPOCH_COLUMN + 1:]
+        if not self.mode.gyro_rate:
+            return aid
+        dtheta = samples[:, 1:4]
+        previous = np.concatenate((self._dtheta_last[None], dtheta[:-1]))
+        return np.hstack((aid, (1.5 * dtheta - 0.5 * previous) / self.sample_period_s))
 
     def _aid_epoch(self, samples: np.ndarray) -> np.ndarray | None:
         """The number (N,) of the newest aiding epoch at or before each sample (NaN: none), None without aiding."""
@@ -337,7 +344,7 @@ class AlignmentPipeline:
         fresh = aid_epoch is not None and aid_epoch > self._step_epoch
         if fresh:
             self._step_epoch = aid_epoch
-        self._stage_step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
+        self.mode.step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
         if self.motion is not None and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + self.config.disturbance.check_interval_s
             self._check_motion(t_end, elapsed_s, q_b_b0, alpha)
@@ -370,48 +377,6 @@ class AlignmentPipeline:
             self._disturbed_until = t_end + d.hold_s
             self._start_estimators(t_end)
 
-    def _stage_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray,
-                    dt_s: float, aid: np.ndarray | None, fresh: bool) -> None:
-        """One control step's stage work: Δα (3,) m/s over ``dt_s`` ending at ``t_end``; ``aid`` the aiding values at
-        the step's end, ``fresh`` whether they come from an aiding epoch newer than the last step's."""
-        if self.fine is None:
-            return
-        if not self.fine.active and self._initial_C_b_n is not None:
-            self.fine.start(self._initial_C_b_n, np.eye(3), *self._initial_sigma())
-        self.fine.feed(dalpha, dt_s)
-        if not self.fine.active and self._handover_due(elapsed_s):
-            solution = self.coarse.solution_at(t_end, q_b_b0)
-            noise = self._noise_part(solution.heading_sigma_deg, solution.level_sigma_deg)
-            self.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *noise,
-                            t_loop_s=self.config.fine.handover_schedule_s)
-
-    def _handover_due(self, elapsed_s: float) -> bool:
-        f = self.config.fine
-        if f.handover == "time":
-            return elapsed_s >= f.handover_time_s
-        if self.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s or self.noise_unchecked:
-            # a datasheet that claims far too little noise would hand over at the first observation, before the
-            # heading is known at all, and the loops cannot pull in a large error; nor may the loops start from a
-            # σ the data's own noise has not checked yet (they carry it on)
-            return False
-        # the noise part only: the bias floor stays whatever the stage, and above the threshold
-        # for a poor gyro it would keep the loops from ever starting
-        return self._noise_part(*self.coarse.sigma(elapsed_s))[1] / DEG <= f.handover_sigma_deg
-
-    def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
-        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit.
-
-        Both are divided by the efficiency factor the reported σ carries, to seed the loops' covariance.
-        """
-        grade, site = self.coarse.grade, self.coarse.source.site
-        bias_heading, bias_level = bias_limit_rad(grade, site.lat, site.gravity)
-        tilt2 = max((level_sigma_deg * DEG) ** 2 - bias_level**2, 0.0)
-        heading2 = max((heading_sigma_deg * DEG) ** 2 - bias_heading**2, 0.0)
-        return float(np.sqrt(tilt2 / ESTIMATOR_EFFICIENCY)), float(np.sqrt(heading2 / ESTIMATOR_EFFICIENCY))
-
-    def _initial_sigma(self) -> tuple[float, float]:
-        return INITIAL_TILT_SIGMA_DEG * DEG, INITIAL_HEADING_SIGMA_DEG * DEG
-
     def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                 coarse: InertialCoarseAlignment) -> ResultRecord:
         episode = None if self.motion is None else self.motion.episode
@@ -424,7 +389,7 @@ class AlignmentPipeline:
                                         coarse.solver.n_obs)
             record = result_record(solution, t_epoch, "disturbed", self.config.alignment.converged_heading_sigma_deg)
         else:
-            record = self._stage_record(t_epoch, t_sample, q_b_b0, coarse)
+            record = self.mode.record(t_epoch, t_sample, q_b_b0, coarse)
         if episode is not None or t_sample < self._disturbed_until:
             # nothing converged survives a disturbance until the restarted alignment earns it again
             return replace(record, phase="disturbed", converged=False)
@@ -432,21 +397,13 @@ class AlignmentPipeline:
             return replace(record, converged=False)   # a base that may be starting to move
         return record
 
-    def _stage_record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
-                      coarse: InertialCoarseAlignment) -> ResultRecord:
-        threshold = self.config.alignment.converged_heading_sigma_deg
-        if self.fine is None or not self.fine.active:
-            record = result_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, "coarse", threshold)
-            # without a fine stage, a converged coarse solution is the end of the alignment
-            return replace(record, phase="aligned") if self.fine is None and record.converged else record
-        sigma = self.fine.sigma
-        solution = coarse.solution_at(t_sample, q_b_b0)
-        C_fine = self.fine.attitude(dcm_from_quat(q_b_b0), t_sample - self._t_step)
-        if self._initial_C_b_n is not None:
-            # a compass-alone start from a given attitude (evaluation) is the loops' alone
-            solution = AttitudeSolution(t_sample, quat_from_dcm(C_fine), sigma.heading_deg, sigma.level_deg,
-                                        coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
-        else:
-            solution = smaller_sigma_solution(solution, C_fine, sigma.heading_deg, sigma.level_deg)
-        aligned = self.fine.schedule_complete and solution.heading_sigma_deg <= threshold
-        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)
+
+def build_pipeline(config: Config, site: Site, rate_hz: float, datasheet: dict[str, float] | None = None,
+                   aids: Iterable[str] = (), live: bool = False) -> AlignmentPipeline:
+    """The pipeline of the mode the aiding kinds ``aids`` select (:data:`~service.modes.MODES`). What an aiding log
+    states of its sensor (noise, lever arm) belongs in ``config.aiding`` (the replay puts it there)."""
+    kinds = frozenset(aids)
+    if kinds not in MODES:
+        known = ", ".join(sorted("+".join(sorted(k)) or "(none)" for k in MODES))
+        raise ConfigError(f"aids {', '.join(sorted(kinds))}: no aided mode for this combination yet (known: {known})")
+    return AlignmentPipeline(config, site, rate_hz, datasheet, live, mode=MODES[kinds])

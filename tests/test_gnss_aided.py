@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from aided_runs import process_simulation
 from sinsalign.protocol import messages
-from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.earth import C_n_n0_fixed
 from sinsalign.service.align.gnss_aided import C_n_e, earth_turn
 from sinsalign.service.config import config_from_mapping
+from sinsalign.service.pipeline import build_pipeline
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import gnss_epochs, with_gnss_faults
 from sinsalign.tools.sim.files import write_simulation

@@ -13,10 +13,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from aided_runs import process_simulation
-from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.config import config_from_mapping
+from sinsalign.service.pipeline import build_pipeline
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import master_epochs, with_master_faults, write_master_log
 from sinsalign.tools.sim.files import write_simulation
@@ -41,7 +41,7 @@ def errors_deg(scenario, records):
 
 
 def mounting_error_deg(scenario, pipeline):
-    return misalignment(pipeline.mounting()[0], scenario.motion.mounting) / DEG
+    return misalignment(pipeline.mode.mounting()[0], scenario.motion.mounting) / DEG
 
 
 @pytest.mark.parametrize("mount_deg", [(20.0, 20.0, 20.0), (-20.0, 20.0, -20.0), (10.0, 0.0, 33.0),

@@ -9,11 +9,11 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.velocity_aided import multistage
 from sinsalign.service.config import ConfigError, config_from_mapping
+from sinsalign.service.pipeline import build_pipeline
 from sinsalign.tools.evaluate import run_once
 from sinsalign.tools.sim.aiding import odometer_epochs
 from sinsalign.tools.sim.imu import ImuErrors, simulate

@@ -9,12 +9,11 @@ from pathlib import Path
 
 import numpy as np
 from rich.progress import Progress
-from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingTrack
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
 from sinsalign.service.config import Config
-from sinsalign.service.pipeline import AlignmentPipeline
+from sinsalign.service.pipeline import AlignmentPipeline, build_pipeline
 
 from .replay import replay
 from .sim.aiding import odometer_epochs

@@ -17,12 +17,11 @@ from typing import Any
 
 import numpy as np
 from rich.progress import Progress
-from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment, quat_from_dcm, skew
 from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
-from sinsalign.service.pipeline import AlignmentPipeline
+from sinsalign.service.pipeline import AlignmentPipeline, build_pipeline
 
 from .sim.aiding import scenario_aiding, with_faults
 from .sim.imu import ERROR_SOURCES, simulate
@@ -113,7 +112,7 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
     mount_error = mount_phi = None
     if scenario.master is not None:
-        mount_error = misalignment(pipeline.mounting()[0], scenario.motion.mounting) / DEG
+        mount_error = misalignment(pipeline.mode.mounting()[0], scenario.motion.mounting) / DEG
         mount_phi = misalignment(dcm_from_quat(np.array([r.mount_q for r in records])), scenario.motion.mounting) / DEG
     phases = tuple(r.phase for i, r in enumerate(records) if i == 0 or records[i - 1].phase != r.phase)
     return RunResult(seed, t, phi, np.array([r.heading_sigma_deg for r in records]),

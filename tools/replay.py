@@ -11,11 +11,11 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.protocol.results import ResultRecord
-from sinsalign.service.aided_pipeline import build_pipeline
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
 from sinsalign.service.config import Config, ConfigError, config_from_mapping
+from sinsalign.service.pipeline import build_pipeline
 from sinsalign.service.restarting import RestartingPipeline
 from sinsalign.service.safe_files import open_private
 

@@ -34,8 +34,10 @@ import copy
 
 import numpy as np
 
+from .coarse import InertialCoarseAlignment
 from .conventions import DEG, cross, dcm_from_quat
 from .earth import OMEGA_IE, Site, ecef_from_geodetic, normal_gravity, radii
+from .sensor_model import SIGMA_UNKNOWN_DEG
 
 GNSS_COLUMNS = 6
 """lat_deg, lon_deg, h_m, vE, vN, vU of the antenna (the pinned GNSS log's columns after t)."""
@@ -265,3 +267,31 @@ class GnssPositionSource(GnssSource):
         integrated IMU errors reach (inf at the first fix: weight 0)."""
         with np.errstate(divide="ignore"):
             return (self.pos_std_m / self.span_s(elapsed_s)) ** 2 + self.vel_std_mps**2
+
+
+class GnssCoarseAlignment(InertialCoarseAlignment):
+    """The inertial-frame coarse stage with σ from the centred fit's own covariance (manoeuvres, not the
+    Earth's rotation, carry the heading here, so the fixed-site σ model does not apply) and the pairs
+    weighted by the source's stated noise."""
+
+    source: GnssSource
+
+    def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
+                aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        self.source.accumulate(elapsed_s, alpha)
+        self.source.follow(elapsed_s, aid)
+        return super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
+
+    def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The pairs weighted by the source's stated noise, with its drift regressor if it has one."""
+        return self.solver.prepare(b, r, self.source.observation_variance(elapsed_s),
+                                   self.source.drift_regressor(elapsed_s))
+
+    def sigma(self, elapsed_s: float) -> tuple[float, float]:
+        covariance = self.solver.covariance()
+        if covariance is None:
+            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+        heading, level = np.sqrt(covariance[2, 2]), np.sqrt(0.5 * (covariance[0, 0] + covariance[1, 1]))
+        factor = self.source.sigma_factor
+        return (min(float(factor * heading / DEG), SIGMA_UNKNOWN_DEG),
+                min(float(factor * level / DEG), SIGMA_UNKNOWN_DEG))

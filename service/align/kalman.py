@@ -269,6 +269,10 @@ class ErrorStateFilter:
         P = self.P
         return AttitudeSigma(float(np.sqrt(P[2, 2])) / DEG, float(np.sqrt(max(P[0, 0], P[1, 1]))) / DEG)
 
+    def set_covariance(self, states: np.ndarray, block: np.ndarray) -> None:
+        """Replace the covariance of ``states`` (indices) with ``block`` (a prior that knows their correlations)."""
+        self.P[np.ix_(states, states)] = block
+
     def extra_slice(self, name: str) -> slice:
         """Where measurement ``name``'s extra states sit in the state vector."""
         return self._extra[name]

@@ -1,0 +1,131 @@
+"""Fixed base (seeds 000 and 001): the inertial-frame coarse stage on the Earth's rotation, then the compass loops.
+
+Observation source: the fixed site (gravity turning with the Earth). Solver: ``alignment.solver`` (OPREQ, GLS …, or
+the one "auto" picks for the datasheet). σ: the coarse stage's model, with the noise the data show. Fine stage: the
+compass loops with their gain schedule and stored-data passes, from the step at which the coarse heading σ (its
+noise part) is within ``fine.handover_sigma_deg`` (or at ``fine.handover_time_s``). The output takes level and
+heading each from whichever stage claims the smaller σ.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ...protocol.results import ResultRecord
+from ..align.coarse import AttitudeSolution, InertialCoarseAlignment
+from ..align.compass import GainSchedule
+from ..align.conventions import DEG, dcm_from_quat, quat_from_dcm
+from ..align.fine import FineAlignment
+from ..align.observations import FixedSiteSource
+from ..align.sensor_model import ESTIMATOR_EFFICIENCY, bias_limit_rad
+from ..align.solvers import make_solver
+from ..align.swing_bias import SwingBias
+from ..records import coarse_record, result_record, smaller_sigma_solution
+
+if TYPE_CHECKING:
+    from ..pipeline import AlignmentPipeline
+
+INITIAL_TILT_SIGMA_DEG = 0.1
+INITIAL_HEADING_SIGMA_DEG = 1.5
+"""1-sigma errors assumed for an attitude given from outside (compass alone, seed 001's start)."""
+
+
+class FixedBase:
+    """The fixed-base mode of ``pipeline`` (its configuration, grade, site and estimators)."""
+
+    aid_kind = ""
+    aid_width = 0
+    checks_translation = True
+    checks_noise = True
+    gyro_rate = False
+
+    def __init__(self, pipeline: AlignmentPipeline) -> None:
+        self.p = pipeline
+
+    def make_coarse(self) -> InertialCoarseAlignment:
+        p, a = self.p, self.p.config.alignment
+        solver = make_solver(p.solver_name, a.request_rho, p.grade, p.site.gravity, a.disturbance_velocity_mps)
+        swing_bias = SwingBias(p.site.lat, p.grade.acc_bias_ms2, p.grade.acc_vrw_ms_rts) if a.swing_bias else None
+        return InertialCoarseAlignment(FixedSiteSource(p.site), p.grade, solver, p.sample_period_s,
+                                       a.obs_interval_s, a.disturbance_velocity_mps, swing_bias)
+
+    def make_fine(self) -> FineAlignment | None:
+        p = self.p
+        if not p.with_fine:
+            return None
+        f = p.config.fine
+        return FineAlignment(p.site, p.grade, GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
+                             p.block_samples * p.sample_period_s, f.stored_data_s, f.stored_pairs,
+                             f.live_pass_steps if p.live else None)
+
+    def stages_text(self) -> str:
+        """The coarse solver ("auto" says what it chose), the swing-bias fit and the compass stage."""
+        p, a = self.p, self.p.config.alignment
+        solver = p.solver_name
+        if a.solver == "auto":
+            solver += f" (auto: {'gyro walk' if solver == 'gls' else 'accelerometer noise'} dominates)"
+        return (f"coarse solver {solver}, swing-bias fit {'on' if a.swing_bias else 'off'}, "
+                f"compass stage {'on' if p.with_fine else 'off'}")
+
+    def counters(self) -> dict[str, int]:
+        return {}
+
+    def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
+             aid: np.ndarray | None, fresh: bool) -> None:
+        """One control step: the loops take Δα (3,) m/s over ``dt_s`` ending at ``t_end``; before they run, the
+        hand-over from the coarse stage."""
+        p = self.p
+        if p.fine is None:
+            return
+        if not p.fine.active and p.initial_C_b_n is not None:
+            p.fine.start(p.initial_C_b_n, np.eye(3), INITIAL_TILT_SIGMA_DEG * DEG, INITIAL_HEADING_SIGMA_DEG * DEG)
+        p.fine.feed(dalpha, dt_s)
+        if not p.fine.active and self._handover_due(elapsed_s):
+            solution = p.coarse.solution_at(t_end, q_b_b0)
+            noise = self._noise_part(solution.heading_sigma_deg, solution.level_sigma_deg)
+            p.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *noise,
+                         t_loop_s=p.config.fine.handover_schedule_s)
+
+    def _handover_due(self, elapsed_s: float) -> bool:
+        p, f = self.p, self.p.config.fine
+        if f.handover == "time":
+            return elapsed_s >= f.handover_time_s
+        if p.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s or p.noise_unchecked:
+            # a datasheet that claims far too little noise would hand over at the first observation, before the
+            # heading is known at all, and the loops cannot pull in a large error; nor may the loops start from a
+            # σ the data's own noise has not checked yet (they carry it on)
+            return False
+        # the noise part only: the bias floor stays whatever the stage, and above the threshold
+        # for a poor gyro it would keep the loops from ever starting
+        return self._noise_part(*p.coarse.sigma(elapsed_s))[1] / DEG <= f.handover_sigma_deg
+
+    def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
+        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit.
+
+        Both are divided by the efficiency factor the reported σ carries, to seed the loops' covariance.
+        """
+        grade, site = self.p.coarse.grade, self.p.coarse.source.site
+        bias_heading, bias_level = bias_limit_rad(grade, site.lat, site.gravity)
+        tilt2 = max((level_sigma_deg * DEG) ** 2 - bias_level**2, 0.0)
+        heading2 = max((heading_sigma_deg * DEG) ** 2 - bias_heading**2, 0.0)
+        return float(np.sqrt(tilt2 / ESTIMATOR_EFFICIENCY)), float(np.sqrt(heading2 / ESTIMATOR_EFFICIENCY))
+
+    def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+               coarse: InertialCoarseAlignment) -> ResultRecord:
+        """The record of an output epoch: the coarse solution alone until the loops run, then the output rule."""
+        p = self.p
+        threshold = p.config.alignment.converged_heading_sigma_deg
+        if p.fine is None or not p.fine.active:
+            return coarse_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, threshold, p.fine is not None)
+        sigma = p.fine.sigma
+        solution = coarse.solution_at(t_sample, q_b_b0)
+        C_fine = p.fine.attitude(dcm_from_quat(q_b_b0), t_sample - p.t_step)
+        if p.initial_C_b_n is not None:
+            # a compass-alone start from a given attitude (evaluation) is the loops' alone
+            solution = AttitudeSolution(t_sample, quat_from_dcm(C_fine), sigma.heading_deg, sigma.level_deg,
+                                        coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
+        else:
+            solution = smaller_sigma_solution(solution, C_fine, sigma.heading_deg, sigma.level_deg)
+        aligned = p.fine.schedule_complete and solution.heading_sigma_deg <= threshold
+        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)

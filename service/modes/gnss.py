@@ -1,0 +1,86 @@
+"""In flight with GNSS (seed 004): the fix's lat_deg, lon_deg, h_m and V^n (6 aiding values per sample), the gyro
+rate appended for the lever arm.
+
+Observation source: the VIF or PIF source (service/align/gnss_aided.py: antenna velocity and position, lever arm
+compensated); solver: the centred fit weighted by the pairs' stated noise, screening each pair against the fit (a
+glitch is left out and counted); σ from the fit itself. From ``aiding.gnss_handover_s`` on (once the coarse heading
+σ is within ``aiding.handover_heading_sigma_deg``) the fine stage is the error-state Kalman filter with GNSS
+velocity and position measurements (lever arm in both), gated by χ²: it rides through outages on the IMU alone,
+with σ growing. No translation check: this base flies.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..align.coarse import InertialCoarseAlignment
+from ..align.conventions import DEG, dcm_from_quat
+from ..align.gnss_aided import GNSS_COLUMNS, GnssCoarseAlignment, GnssPositionSource, GnssVelocitySource
+from ..align.kalman import ErrorStateFilter, GnssPosition, GnssVelocity, antenna_lever_velocity, enu_to_geodetic_step
+from ..align.solvers import CentredWahba
+from .kalman import KalmanMode
+
+PAIR_GATE_CHI2 = 36.0
+"""The coarse stage's screen of each pair: |e|²/μ over the fit's residual variance (6σ in 3-D, a false alarm
+in ~1e-6 pairs; at the Kalman gate's 16.3 the seed-004 runs lost 0-2 good pairs in 60 s). A 20-m/s glitch
+is 200σ."""
+HANDOVER_SIGMA_FACTOR = 3.0
+"""The Kalman stage starts with V^n and position from one fix: their σ is this many times the fix's."""
+
+
+class Gnss(KalmanMode):
+    aid_width = GNSS_COLUMNS
+    aid_kind = "gnss"
+    gyro_rate = True
+
+    def make_coarse(self) -> InertialCoarseAlignment:
+        p = self.p
+        a, ad = p.config.alignment, p.config.aiding
+        source_class = GnssPositionSource if ad.gnss_formula == "pif" else GnssVelocitySource
+        source = source_class(p.site, np.array(ad.gnss_lever_m), ad.gnss_vel_std_mps, ad.gnss_pos_std_m)
+        # the pairs are screened against the fit (a glitch of the fixes would otherwise enter it for good)
+        solver = CentredWahba(weighted=True, gate_chi2=PAIR_GATE_CHI2, drift=source.drift)
+        return GnssCoarseAlignment(source, p.grade, solver, p.sample_period_s, a.obs_interval_s,
+                                   a.disturbance_velocity_mps)
+
+    def make_fine(self) -> ErrorStateFilter | None:
+        p = self.p
+        if not p.config.fine.enabled:
+            return None
+        ad = p.config.aiding
+        lever = np.array(ad.gnss_lever_m)
+        return ErrorStateFilter(p.grade, [GnssVelocity(ad.gnss_vel_std_mps, lever),
+                                          GnssPosition(ad.gnss_pos_std_m, lever)], ad.gate_chi2)
+
+    def measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """The fix's velocity with the gyro rate (lever arm), and its position in rad / m."""
+        return [("gnss_vel", aid[3:9]), ("gnss_pos", np.r_[aid[:2] * DEG, aid[2]])]
+
+    def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
+             aid: np.ndarray | None, fresh: bool) -> None:
+        """The Kalman stage's step once it runs; before it, the hand-over from the coarse stage. ``aid``: the fix at
+        the step's end, then the gyro rate (3, rad/s)."""
+        p = self.p
+        C_b_b0 = dcm_from_quat(q_b_b0)
+        if p.fine is None or self.kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):
+            return
+        ad = p.config.aiding
+        if not np.isfinite(aid).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:
+            return
+        solution = self.handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
+                                                                 "(manoeuvre)"))
+        if solution is None:
+            return
+        C_b_n = dcm_from_quat(solution.q_b_n)
+        antenna = np.r_[aid[:2] * DEG, aid[2]]
+        lever = np.array(ad.gnss_lever_m)
+        V_n = aid[3:6] - antenna_lever_velocity(C_b_n, aid[6:9], antenna[0], lever)
+        position = antenna - enu_to_geodetic_step(C_b_n @ lever, antenna)
+        p.fine.start(C_b_n, C_b_b0, V_n, position, solution.level_sigma_deg * DEG,
+                     solution.heading_sigma_deg * DEG, HANDOVER_SIGMA_FACTOR * ad.gnss_vel_std_mps,
+                     velocity_from_attitude=False, position_sigma_m=HANDOVER_SIGMA_FACTOR * ad.gnss_pos_std_m)
+
+    def counters(self) -> dict[str, int]:
+        """The filter's counts, and the coarse pairs screened out (glitches) and screens reopened after a run of
+        rejections."""
+        return {**super().counters(), "gnss_coarse_rejected": self.p.coarse.solver.rejected,
+                "gnss_coarse_reopened": self.p.coarse.solver.reopened}

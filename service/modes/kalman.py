@@ -1,0 +1,109 @@
+"""What the modes whose fine stage is the error-state Kalman filter share (odometer, GNSS, master INS).
+
+Each such mode subclasses :class:`KalmanMode` and declares its coarse stage, its filter's measurements and its
+hand-over; from the hand-over on the attitude and its σ come from the filter, and ``aligned`` means its heading σ
+is at or below ``alignment.converged_heading_sigma_deg``.
+"""
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ...protocol.results import ResultRecord
+from ..align.coarse import AttitudeSolution, InertialCoarseAlignment
+from ..align.conventions import dcm_from_quat, quat_from_dcm
+from ..align.kalman import ErrorStateFilter
+from ..records import coarse_record, result_record
+
+if TYPE_CHECKING:
+    from ..pipeline import AlignmentPipeline
+
+
+class KalmanMode:
+    """The shared part of a Kalman-stage mode of ``pipeline``; a subclass gives ``aid_kind``, ``aid_width``,
+    :meth:`make_coarse`, :meth:`make_fine`, :meth:`measurements` and :meth:`step` (its hand-over)."""
+
+    aid_kind = ""
+    aid_width = 0
+    checks_translation = False
+    checks_noise = False
+    gyro_rate = False
+    sigma_margin = 1.25
+    """The reported σ is the filter's times this. The filters are Gaussian-calibrated (seed 002, 20 seeds from
+    10 s: |error|/σ median 0.71, p99 2.3-2.5; seed 004, 40 seeds, 30-120 s, GNSS at 50/10/5/1 Hz: median 0.52-0.63,
+    p99 2.3-2.55, max 2.84-3.07), and so they reach 3σ about once in a few thousand epochs. "Never converged beyond
+    3σ" asks for a margin: 1.25 puts those tails at 2.3-2.5σ (docs/algorithms/transfer.md, "σ, as calibrated";
+    docs/algorithms/gnss.md, "Slower receivers")."""
+    handover_limit_key = "handover_heading_sigma_deg"
+    """The ``[aiding]`` key of the largest coarse heading σ (deg) the Kalman stage starts from."""
+
+    def __init__(self, pipeline: AlignmentPipeline) -> None:
+        self.p = pipeline
+
+    def make_coarse(self) -> InertialCoarseAlignment:
+        raise NotImplementedError
+
+    def make_fine(self) -> ErrorStateFilter | None:
+        raise NotImplementedError
+
+    def measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+        """(measurement name, value) of one control step's aiding values (finite)."""
+        raise NotImplementedError
+
+    def stages_text(self) -> str:
+        return f"{self.aid_kind}-aided alignment"
+
+    def kalman_step(self, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray, aid: np.ndarray | None,
+                    fresh: bool) -> bool:
+        """Once the filter runs: predict over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body
+        attitude C_b^{b0}) and fold the step's measurements if its aiding is there and ``fresh`` (an epoch the
+        filter has not had: the same two epochs interpolated again are not a new measurement). False before the
+        filter runs."""
+        fine = self.p.fine
+        if fine is None or not fine.active:
+            return False
+        fine.predict(dalpha, dt_s, C_b_b0)
+        if fresh and aid is not None and np.isfinite(aid).all():
+            for name, value in self.measurements(aid):
+                fine.update(name, value)
+        return True
+
+    def handover_solution(self, t_end: float, q_b_b0: np.ndarray, notice: tuple[str, str] | None
+                          ) -> AttitudeSolution | None:
+        """The coarse solution at the step's end to start the filter from, or None while its heading σ is above
+        ``aiding.<handover_limit_key>``: a linear filter started several degrees off turns overconfident
+        (seed 003 at 20 m/s: a 4°-σ window left 3-5° errors at σ 0.3°). ``notice`` (what comes before and after
+        "heading σ … > …") tells the operator once why the coarse stage goes on; None: nothing to tell."""
+        p = self.p
+        solution = p.coarse.solution_at(t_end, q_b_b0)
+        limit = getattr(p.config.aiding, self.handover_limit_key)
+        if solution.heading_sigma_deg <= limit:
+            return solution
+        if notice is not None:
+            p.last_notice = p.last_notice or (f"{notice[0]}heading σ {solution.heading_sigma_deg:.2f}° > "
+                                              f"aiding.{self.handover_limit_key} {limit:g}°{notice[1]}")
+        return None
+
+    def counters(self) -> dict[str, int]:
+        """Each measurement's updates the filter accepted and its gate turned away (``<name>_accepted``,
+        ``<name>_rejected``; none before the filter exists)."""
+        fine = self.p.fine
+        return {} if fine is None else {f"{name}_{what}": getattr(c, what) for name, c in fine.counters.items()
+                                        for what in ("accepted", "rejected")}
+
+    def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
+               coarse: InertialCoarseAlignment) -> ResultRecord:
+        """The coarse solution's record until the filter runs; then the filter's attitude with its σ (×
+        :attr:`sigma_margin`)."""
+        p = self.p
+        threshold = p.config.alignment.converged_heading_sigma_deg
+        if p.fine is None or not p.fine.active:
+            return coarse_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, threshold, p.fine is not None)
+        sigma = p.fine.sigma
+        C_b_n = p.fine.attitude(dcm_from_quat(q_b_b0), t_sample - p.t_step)
+        m = self.sigma_margin
+        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), m * sigma.heading_deg, m * sigma.level_deg,
+                                    coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
+        aligned = solution.heading_sigma_deg <= threshold
+        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)

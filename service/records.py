@@ -1,0 +1,48 @@
+"""The pinned result record of an attitude solution, and the output rule once a fine stage runs beside the coarse
+one."""
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from ..protocol.results import ResultRecord
+from .align.coarse import AttitudeSolution
+from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm, with_heading_of
+
+
+def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, threshold_deg: float) -> ResultRecord:
+    """The pinned result of one solution, stamped with its output epoch."""
+    heading, pitch, roll = euler_from_dcm(dcm_from_quat(solution.q_b_n))
+    heading_deg = float(heading / DEG) % 360.0
+    q = tuple(float(c) for c in solution.q_b_n / np.linalg.norm(solution.q_b_n))
+    return ResultRecord(t=t_epoch, phase=phase, q=q, pitch_deg=float(pitch / DEG), roll_deg=float(roll / DEG),
+                        heading_deg=heading_deg if heading_deg < 360.0 else 0.0,
+                        heading_sigma_deg=solution.heading_sigma_deg, level_sigma_deg=solution.level_sigma_deg,
+                        converged=bool(solution.heading_sigma_deg <= threshold_deg), rho=float(solution.rho),
+                        trace_P=float(solution.trace_P), n_obs=solution.n_obs)
+
+
+def smaller_sigma_solution(coarse: AttitudeSolution, C_fine: np.ndarray, fine_heading_sigma_deg: float,
+                           fine_level_sigma_deg: float) -> AttitudeSolution:
+    """The output once the loops run beside the coarse stage (which runs on): the level of whichever of the two
+    claims the smaller level σ, the heading of whichever claims the smaller heading σ, each with its σ. So the fine
+    stage never makes either worse than the coarse stage alone would give (a 600-s least-squares heading can beat a
+    narrow loop, while the loops hold the level that the inertial-frame fit lets drift by ε·T)."""
+    C_coarse = dcm_from_quat(coarse.q_b_n)
+    level_fine = fine_level_sigma_deg < coarse.level_sigma_deg
+    heading_fine = fine_heading_sigma_deg < coarse.heading_sigma_deg
+    if not level_fine and not heading_fine:
+        return coarse
+    C_level = C_fine if level_fine else C_coarse
+    C_b_n = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
+    return replace(coarse, q_b_n=quat_from_dcm(C_b_n),
+                   heading_sigma_deg=min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
+                   level_sigma_deg=min(fine_level_sigma_deg, coarse.level_sigma_deg))
+
+
+def coarse_record(solution: AttitudeSolution, t_epoch: float, threshold_deg: float, has_fine: bool) -> ResultRecord:
+    """The record of the coarse stage's solution before a fine stage runs; without a fine stage at all, a converged
+    coarse solution is the end of the alignment (``aligned``)."""
+    record = result_record(solution, t_epoch, "coarse", threshold_deg)
+    return replace(record, phase="aligned") if not has_fine and record.converged else record
