@@ -72,18 +72,19 @@ def _overrides(args: argparse.Namespace) -> dict:
 
 def _add_alignment_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("alignment (override the configuration file)")
-    g.add_argument("--config", metavar="FILE", help="TOML configuration (see README, 'Configuration')")
+    g.add_argument("--config", metavar="FILE", help="TOML configuration (see docs/reference.md, 'Configuration')")
     g.add_argument("--solver", choices=("auto", "opreq", "request", "qmethod", "centred", "gls"),
                    help="auto (default): opreq, or gls where the datasheet's gyro angle random walk dominates the "
                    "heading noise; opreq: optimal fading gain; request: fixed gain --rho; qmethod: batch OBA; "
                    "centred: Wahba with a free constant offset (for the aided modes); gls: generalised least "
-                   "squares on whitened α increments (fixed base; at the gyro's noise floor, see README)")
+                   "squares on whitened α increments (fixed base, at the gyro's noise floor:"
+                   " docs/algorithms/coarse.md)")
     g.add_argument("--rho", type=float, help="fixed fading gain of --solver request, e.g. 0.01")
     g.add_argument("--obs-interval", type=float, metavar="S", help="seconds between vector observations (0.1)")
     g.add_argument("--swing-bias", action=argparse.BooleanOptionalAction, default=None,
                    help="estimate the accelerometer bias seen through a swinging body and take its term out of the "
                    "coarse stage's vectors (on by default; fixed base; removes a slow heading transient on a "
-                   "swinging base, see README 'Swinging bias'); --no-swing-bias leaves the vectors as integrated")
+                   "swinging base, see docs/algorithms/coarse.md); --no-swing-bias leaves the vectors as integrated")
     g.add_argument("--no-fine", action="store_true", help="coarse alignment only (no compass hand-over)")
     g.add_argument("--stored-pairs", type=int, metavar="N",
                    help="backward+forward passes over the stored first 80 s (default 3; 0 = none)")
@@ -490,7 +491,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--first-seed", type=SEED, default=0)
     p.add_argument("--seed-sets", type=POSITIVE_INT, default=1, metavar="K",
                    help="run K disjoint sets of --seeds seeds and add a table of the last window per set (how much a "
-                   "20-seed figure moves with the seeds; issue 3's figures: --seeds 20 --seed-sets 5)")
+                   "20-seed figure moves with the seeds; the docs' tables: --seeds 20 --seed-sets 5)")
     p.add_argument("--solvers", action="store_true", help="also compare OPREQ, q-method and REQUEST gains")
     p.add_argument("--budget", action="store_true", help="also run the same seeds with each IMU error alone (biases "
                    "and other systematic errors, accelerometer noise, gyro noise; the datasheet unchanged) and print "
