@@ -323,10 +323,15 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise ConfigError("no input: give --serial PATH (serial.path) or --zenoh-imu (zenoh.imu_input = true)")
     port = SerialPort(config.serial.path, config.serial.baud, config.serial.reconnect_max_s) \
         if config.serial.path else None
-    daemon = Daemon(config, open_session(config.zenoh), port)
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: daemon.stop())
-    daemon.run()
+    try:
+        with open_session(config.zenoh) as session:   # closed however the daemon ends, or fails to start
+            daemon = Daemon(config, session, port)
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                signal.signal(sig, lambda *_: daemon.stop())
+            daemon.run()
+    finally:
+        if port is not None:
+            port.close()
     return 0
 
 
@@ -429,15 +434,15 @@ def cmd_watch(args: argparse.Namespace) -> int:
     z = config.zenoh
     if not (z.connect or z.listen or z.config_file):   # neither options nor file say: the local daemon
         config = replace(config, zenoh=replace(z, connect=("tcp/127.0.0.1:7447",)))
-    session = open_session(config.zenoh)
-    client = WatchClient(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit), only_unit=args.unit is not None)
-    try:
-        watch(client, args.duration)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        client.close()
-        session.close()
+    with open_session(config.zenoh) as session:
+        client = WatchClient(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit),
+                             only_unit=args.unit is not None)
+        try:
+            watch(client, args.duration)
+        except KeyboardInterrupt:
+            pass
+        finally:
+            client.close()
     return 0
 
 

@@ -66,45 +66,44 @@ def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: b
         # the samples wait for their aiding: allow for the latency at any playing speed
         **({} if aid is None else {"aiding": {**aid.daemon_config(), "max_wait_s": 10.0}})})
     pty = PtyPair()
-    daemon = Daemon(config, open_session(config.zenoh), SerialPort(pty.port_name, config.serial.baud))
     watcher_config = replace(config.zenoh, listen=(), connect=(f"tcp/127.0.0.1:{port}",))
-    watch_session = open_session(watcher_config)
-    client = WatchClient(watch_session, daemon.keys)
-    received: list[dict] = []
-    collector = watch_session.declare_subscriber(daemon.keys.attitude, lambda s: received.append(
-        messages.decode_attitude(s.payload.to_bytes())))
-    deadline = time.monotonic() + 5.0
-    while not daemon.attitude_subscribed and time.monotonic() < deadline:
-        time.sleep(0.01)
-    chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
-                           seed))
-    truth_t = np.concatenate([c.t for c in chunks])
-    truth_C = np.concatenate([c.C_b_n_true for c in chunks])
-    daemon_thread = threading.Thread(target=daemon.run, daemon=True)
-    daemon_thread.start()
-    done = threading.Event()
+    with open_session(config.zenoh) as daemon_session, open_session(watcher_config) as watch_session:
+        daemon = Daemon(config, daemon_session, SerialPort(pty.port_name, config.serial.baud))
+        client = WatchClient(watch_session, daemon.keys)
+        received: list[dict] = []
+        collector = watch_session.declare_subscriber(daemon.keys.attitude, lambda s: received.append(
+            messages.decode_attitude(s.payload.to_bytes())))
+        deadline = time.monotonic() + 5.0
+        while not daemon.attitude_subscribed and time.monotonic() < deadline:
+            time.sleep(0.01)
+        chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
+                               seed))
+        truth_t = np.concatenate([c.t for c in chunks])
+        truth_C = np.concatenate([c.C_b_n_true for c in chunks])
+        daemon_thread = threading.Thread(target=daemon.run, daemon=True)
+        daemon_thread.start()
+        done = threading.Event()
 
-    def play() -> None:
+        def play() -> None:
+            try:
+                FramePlayer(pty.master_fd, speed, aiding).play_chunks((c.t, c.dtheta, c.dv) for c in chunks)
+                time.sleep(0.5)
+            finally:
+                done.set()
+
+        threading.Thread(target=play, daemon=True).start()
         try:
-            FramePlayer(pty.master_fd, speed, aiding).play_chunks((c.t, c.dtheta, c.dv) for c in chunks)
-            time.sleep(0.5)
+            if show:
+                watch(client, stop=done)
+            else:
+                done.wait()
         finally:
-            done.set()
-
-    threading.Thread(target=play, daemon=True).start()
-    try:
-        if show:
-            watch(client, stop=done)
-        else:
-            done.wait()
-    finally:
-        status = daemon.status()
-        daemon.stop()
-        daemon_thread.join(timeout=5)
-        collector.undeclare()
-        client.close()
-        watch_session.close()
-        pty.close()
+            status = daemon.status()
+            daemon.stop()
+            daemon_thread.join(timeout=5)
+            collector.undeclare()
+            client.close()
+            pty.close()
     t = np.array([m["t"] for m in received])
     index = np.searchsorted(truth_t, t - 1e-9)
     phi = misalignment(dcm_from_quat(np.array([m["q"] for m in received])), truth_C[index]) / DEG
