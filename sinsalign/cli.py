@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 import time
 from collections.abc import Callable
@@ -138,133 +137,20 @@ def cmd_replay(args: argparse.Namespace) -> int:
     return 0
 
 
-AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot_seed003"),
-                "seed002": ("evaluate_transfer.seed002_table", "evaluate_transfer.plot_seed002"),
-                "seed004": ("evaluate_gnss.seed004_table", "evaluate_gnss.plot_seed004"),
-                "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
-                "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates"),
-                "transfer-mems": ("evaluate_transfer.handover_table", "evaluate_transfer.plot_handover")}
-"""``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
-sinsalign.tools)."""
-
-
-def _tool(name: str) -> Callable:
-    """The function ``module.function`` of sinsalign.tools, imported on demand (the tools pull in matplotlib)."""
-    module, function = name.rsplit(".", 1)
-    return getattr(importlib.import_module(f"sinsalign.tools.{module}"), function)
-
-
-def _aided_table(name: str, seeds: range, out: Path, provenance: str) -> None:
-    """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates and
-    seed002-rates: slower GNSS receivers and master INS) and plots."""
-    table, plot = (_tool(f) for f in AIDED_TABLES[name])
-    text, runs = table(seeds)
-    if name == "seed002":
-        from sinsalign.tools.evaluate_transfer import phase1_comparison
-        text += "\n\n" + phase1_comparison(seeds)
-    _write_table(name, text, out, plot(runs, out / f"{name}_heading.png"), provenance)
-
-
-def _write_table(name: str, text: str, out: Path, png: Path, provenance: str) -> None:
-    """Print an eval's tables and save them as OUT/NAME.md, both headed by ``provenance`` (the command line and the
-    commit it started on)."""
-    text = f"{provenance}\n\n{text}"
-    (out / f"{name}.md").write_text(text + "\n")
-    print(text)
-    print(f"\nplot: {png}\ntable: {out / f'{name}.md'}")
-
-
 def cmd_eval(args: argparse.Namespace) -> int:
-    from sinsalign.service.config import ConfigError, load_config
-    from sinsalign.tools.evaluate import (
-        budget_table,
-        fine_table,
-        monte_carlo,
-        plot_fine,
-        plot_heading,
-        scenario_table,
-        seed_set_table,
-        solver_table,
-    )
-    from sinsalign.tools.stamp import stamp
-    provenance = stamp(args.argv)   # the commit the runs start on
-    seeds = range(args.first_seed, args.first_seed + args.seeds * args.seed_sets)
-    out = Path(args.out_dir)
+    from sinsalign.service.config import load_config
+    from sinsalign.tools.eval_command import run_eval
     overrides = _overrides(args)
     config = load_config(args.config, overrides)   # a wrong file or option fails here, before any run
-    aided = args.scenario in AIDED_TABLES
-    if aided and (args.config or overrides or args.solvers or args.fine or args.seed_sets > 1 or args.budget):
-        raise ConfigError(f"eval {args.scenario} runs its table's own configurations; --config, the alignment "
-                          "options, --solvers, --fine, --seed-sets and --budget apply to a single scenario "
-                          "(sinsalign sim --list)")
-    out.mkdir(parents=True, exist_ok=True)
-    if aided:
-        _aided_table(args.scenario, seeds, out, provenance)
-        return 0
-    runs = monte_carlo(args.scenario, seeds, config.as_dict())
-    text = scenario_table(args.scenario, runs)
-    if args.seed_sets > 1:
-        text += "\n\n" + seed_set_table(args.scenario, runs, args.seeds)
-    others = None
-    if args.budget:
-        text += "\n\n" + budget_table(args.scenario, runs, config.as_dict())[0]
-    if args.fine:
-        table, fine_runs = fine_table(args.scenario, seeds)
-        text += "\n\n" + table
-        print(f"plot: {plot_fine(args.scenario, fine_runs, out / f'{args.scenario}_fine.png')}")
-    if args.solvers:
-        table, all_runs = solver_table(args.scenario, seeds)
-        text += "\n\n" + table
-        others = {k: v for k, v in all_runs.items() if k != "OPREQ"}
-    _write_table(args.scenario, text, out, plot_heading(args.scenario, runs, out / f"{args.scenario}_heading.png",
-                                                        others), provenance)
+    run_eval(args.argv, args.scenario, range(args.first_seed, args.first_seed + args.seeds * args.seed_sets),
+             args.seeds, Path(args.out_dir), config, bool(args.config or overrides), args.budget, args.fine,
+             args.solvers)
     return 0
 
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
-    from sinsalign.service.config import ConfigError
-    from sinsalign.tools.benchmark import bench_aided_latency, bench_latency, bench_replay, bench_stream_memory
-    if 0.0 < args.stream_hours < 1.0 / 60.0:
-        raise ConfigError(f"--stream-hours {args.stream_hours:g}: at least one minute of data (1/60 h), or 0 to skip")
-    from statistics import median
-
-    from sinsalign.service.config import config_from_mapping
-    from sinsalign.tools.evaluate import COARSE_ONLY
-    for label, config in (("default configuration (coarse → compass)", None),
-                          ("coarse stage only", config_from_mapping(COARSE_ONLY))):
-        runs = [bench_replay(duration_s=args.seconds, config=config) for _ in range(args.repeat)]
-        replay_fps = [r.frames_per_s for r in runs]
-        pipeline_fps = [r.samples / r.pipeline_seconds for r in runs]
-        print(f"replay (CSV → JSONL) of {runs[0].samples} frames, {label}, best / median of {len(runs)}: "
-              f"{max(replay_fps):,.0f} / {median(replay_fps):,.0f} frames/s; pipeline alone "
-              f"{max(pipeline_fps):,.0f} / {median(pipeline_fps):,.0f} frames/s")
-    lat = bench_latency()
-    print("live path, one sample per call: p50 {p50_us:.0f} µs, p99 {p99_us:.0f} µs, max {max_us:.0f} µs "
-          "(budget at 200 Hz: {budget_200hz_us:.0f} µs)".format(**lat))
-    aided = bench_aided_latency()
-    print("velocity-aided live path at 100 Hz (seed-003 drive, 80 m/s, 180 s: multistage re-runs then the Kalman "
-          "stage): mean {mean_us:.0f} µs = {share:.1f} % of the {period_us:.0f}-µs period, p50 {p50_us:.0f} µs, "
-          "p99 {p99_us:.0f} µs, max {max_us:.0f} µs at t = {max_at_s:g} s".format(share=100 * aided["mean_share"],
-                                                                                  **aided))
-    if args.live:
-        from sinsalign.tools.benchmark import bench_live
-        every = bench_live(args.live_seconds)
-        print(f"live daemon (own process) ← pty at 200 Hz, attitude for every sample: frame written → attitude "
-              f"received p50 {every.latency_p50_ms:.2f} ms, p99 {every.latency_p99_ms:.2f} ms, max "
-              f"{every.latency_max_ms:.2f} ms ({every.received}/{every.frames} received); daemon CPU "
-              f"{100 * every.cpu_share:.1f} % of a core; flat out it kept up with {every.max_ingest_frames_s:,.0f} "
-              f"frames/s")
-        default = bench_live(args.live_seconds, flat_out_s=0.5, output_period_s=1.0)
-        print(f"same at the default 1-Hz attitude output: daemon CPU {100 * default.cpu_share:.1f} % of a core")
-    if args.stream_hours > 0:
-        start = time.perf_counter()
-        samples = bench_stream_memory(args.stream_hours)
-        elapsed = time.perf_counter() - start
-        first = samples[0][1]
-        for hour, rss in samples:
-            print(f"  stream hour {hour:5.1f}: RSS {rss:7.1f} MiB")
-        print(f"{args.stream_hours:g} h stream in {elapsed:.0f} s: RSS growth {samples[-1][1] - first:+.2f} MiB "
-              f"after the first hour")
+    from sinsalign.tools.benchmark import print_report
+    print_report(args.seconds, args.repeat, args.live, args.live_seconds, args.stream_hours)
     return 0
 
 
@@ -336,56 +222,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
-    import json
-    import os
-
-    from sinsalign.protocol.imu_log import open_imu_log
-    from sinsalign.service.align.conventions import DEG
-    from sinsalign.tools.sim.aiding import scenario_aiding
-    from sinsalign.tools.sim.imu import simulate
-    from sinsalign.tools.sim.scenarios import seed_run
-    from sinsalign.tools.virtual_imu import AidingPlayback, FramePlayer, PtyPair
-    if args.log:
-        chunks = open_imu_log(args.log).blocks()
-        what = args.log
-    else:
-        s = seed_run(args.scenario, args.seed, args.duration)
-        duration = s.duration_s
-        chunks = ((c.t, c.dtheta, c.dv) for c in simulate(s.motion, s.site, s.errors, s.rate_hz, duration, args.seed))
-        what = f"{args.scenario} seed {args.seed} (site lat {s.site.lat / DEG:.3f}°, "\
-               f"{s.rate_hz:g} Hz: serve with --config giving [site] and [imu] to match)"
-    aiding = None
-    if args.aid:
-        aid = None if args.log else scenario_aiding(s, args.seed)
-        if aid is None:
-            print(f"--aid: {args.log or args.scenario} has no simulated aiding sensor (seed003-*, seed004, seed002 "
-                  "have)", file=sys.stderr)
-            return 2
-        aiding = AidingPlayback(aid.kind, aid.epochs[aid.epochs[:, 0] <= duration], args.aid_late)
-        table = ", ".join(f"{k} = {json.dumps(v)}" for k, v in aid.daemon_config().items())
-        what += f", with its {aid.kind} epochs {args.aid_late:g} s late (serve --aid {aid.kind}, [aiding] {table})"
-    pty = None
-    if args.port:
-        fd = os.open(args.port, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)
-        name = args.port
-    else:
-        pty = PtyPair()
-        fd, name = pty.master_fd, pty.port_name
-    print(f"virtual IMU on {name}: playing {what} at ×{args.speed:g} in {args.start_delay:g} s", file=sys.stderr)
-    time.sleep(args.start_delay)   # the reader's open() flushes what came before it
-    player = FramePlayer(fd, args.speed, aiding)
-    try:
-        player.play_chunks(chunks)
-    except KeyboardInterrupt:
-        pass
-    finally:
-        print(f"wrote {player.frames_written} frames", file=sys.stderr)
-        time.sleep(0.5)   # let the reader drain before the pty disappears
-        if pty is not None:
-            pty.close()
-        else:
-            os.close(fd)
-    return 0
+    from sinsalign.tools.bench_command import run_bench
+    return run_bench(args.log, args.scenario, args.seed, args.duration, args.aid, args.aid_late, args.port,
+                     args.speed, args.start_delay)
 
 
 def cmd_fuzz(args: argparse.Namespace) -> int:
@@ -613,11 +452,12 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_scenario(args: argparse.Namespace) -> None:
     """A scenario name the simulator does not know is the user's error, said before anything runs (``main`` lets
     a KeyError through: anywhere else it is a bug, and shows as one)."""
+    from sinsalign.service.config import ConfigError
+    from sinsalign.tools.eval_command import AIDED_TABLES
+    from sinsalign.tools.sim.scenarios import get_scenario
     name = getattr(args, "scenario", None)
     if not name or name in AIDED_TABLES:
         return
-    from sinsalign.service.config import ConfigError
-    from sinsalign.tools.sim.scenarios import get_scenario
     try:
         get_scenario(name)
     except KeyError as exc:
