@@ -19,28 +19,23 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from typing import TextIO
 
 import numpy as np
 import zenoh
 
 from ..protocol import messages
-from ..protocol.imu_log import IMU_COLUMNS, RESTART_MARKER, write_header, write_rows
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
 from ..protocol.sequence import SequenceTracker
 from .config import Config, ConfigError
+from .health import health
 from .inbox import Inbox
 from .ingest import Ingest, SampleCounters
-from .safe_files import open_private
+from .recording import Recording
 from .sample_gate import Sample
 from .serial_port import SerialPort
 
 log = logging.getLogger("sinsalign.daemon")
-NO_INPUT_S = 1.0
-AID_START_GRACE_S = 30.0
-"""IMU data (s) an aided mode may run without a usable aiding value before health degrades: a GNSS receiver's
-warm start; a stream that never comes, comes for another kind, or is stamped off the IMU's clock shows after it."""
 INBOX_LIMIT = 100_000
 """Messages each Zenoh inbox holds for the loop (8 minutes of a 200-Hz IMU)."""
 INBOX_BYTES = 32 << 20
@@ -68,7 +63,7 @@ class Daemon:
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
         self._inbox: Inbox[zenoh.ZBytes] = Inbox(INBOX_LIMIT, INBOX_BYTES)
-        self._recording: TextIO | None = self._open_recording(config.daemon.record_path)
+        self._recording = Recording(config.daemon.record_path, config) if config.daemon.record_path else None
         self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
         self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
         self._refuse_a_served_unit()
@@ -208,24 +203,18 @@ class Daemon:
         """The status message; ``advance`` (the periodic status) makes its counters the baseline the next one's
         health is judged against (a state query must not swallow a rise)."""
         counters = self.all_counters()
-        errors = messages.fault_count(counters)
         ingest = self.ingest
         awaiting = ingest.pipeline.awaiting_aid
-        if self._last_input is None:
-            health = "starting" if time.monotonic() - self._started < NO_INPUT_S else "no_input"
-        elif time.monotonic() - self._last_input > NO_INPUT_S:
-            health = "no_input"
-        else:   # a receiver before its first fix is no fault, for a while: the aided alignment has not begun
-            rose = errors > messages.fault_count(self._counters_at_status)
-            overdue = awaiting and ingest.t_last is not None and ingest.t_last - ingest.t_first > AID_START_GRACE_S
-            health = ("degraded" if rose or overdue or messages.screening_alarm(self._counters_at_status, counters)
-                      else "starting" if awaiting else "ok")
+        now = time.monotonic()
+        waited_s = (ingest.t_last - ingest.t_first if ingest.t_last is not None else 0.0) if awaiting else None
+        state = health(now - self._started, None if self._last_input is None else now - self._last_input, waited_s,
+                       self._counters_at_status, counters)
         if advance:
             self._counters_at_status = counters
         last_error = ingest.aid_wait_text() if awaiting else ingest.aid_stopped_text()
         last_error = last_error or self.last_error or (self.serial.last_error if self.serial is not None else None)
         phase = self.last_record.phase if self.last_record is not None else "coarse"
-        return messages.status_message(self.keys.unit, time.monotonic() - self._started, health, phase,
+        return messages.status_message(self.keys.unit, now - self._started, state, phase,
                                        ingest.t_last, last_error, counters)
 
     def _on_query(self, query: zenoh.Query) -> None:
@@ -261,23 +250,12 @@ class Daemon:
                   for kind in self.ingest.aid_kinds]
         return " + ".join(inputs + aiding) or "no input"
 
-    def _open_recording(self, path: str) -> TextIO | None:
-        if not path:
-            return None
-        stream = open_private(path)   # a recording of the raw input is the customer's data
-        s, sensor = self.config.site, self.config.sensor
-        write_header(stream, {"lat_deg": s.lat_deg, "lon_deg": s.lon_deg, "height_m": s.height_m,
-                              "rate_hz": self.config.imu.rate_hz, "gyro_bias_deg_h": sensor.gyro_bias_deg_h,
-                              "gyro_arw_deg_rth": sensor.gyro_arw_deg_rth, "acc_bias_ug": sensor.acc_bias_ug,
-                              "acc_vrw_ug_rthz": sensor.acc_vrw_ug_rthz}, IMU_COLUMNS)
-        return stream
-
     def _record_restart(self, reason: str) -> None:
         """A restart into the recording, if one is open: its replay starts over at the same sample."""
         if self._recording is not None:
-            self._recording.write(f"{RESTART_MARKER} {' '.join(reason.split())}\n")
+            self._recording.restart(reason)
 
     def _record_raw(self, rows: np.ndarray) -> None:
         """Admitted rows (N, 7: t in s, Δθ in rad, Δv in m/s) into the recording, if one is open."""
         if self._recording is not None:
-            write_rows(self._recording, rows)
+            self._recording.rows(rows)

@@ -132,3 +132,17 @@ def test_a_second_daemon_on_a_served_unit_id_refuses_to_start(tmp_path):
             session.close()
     finally:
         run.stop()
+
+
+def test_health_follows_input_faults_and_the_aids_grace():
+    """The status's health rule alone: no input yet, gone, a fault counter that rose, an aid still awaited."""
+    from sinsalign.service.health import AID_START_GRACE_S, NO_INPUT_S, health
+    quiet, faulty = {"bad_crc": 0}, {"bad_crc": 1}
+    assert health(0.5 * NO_INPUT_S, None, None, quiet, quiet) == "starting"
+    assert health(2.0 * NO_INPUT_S, None, None, quiet, quiet) == "no_input"
+    assert health(10.0, 2.0 * NO_INPUT_S, None, quiet, quiet) == "no_input"
+    assert health(10.0, 0.1, None, quiet, quiet) == "ok"
+    assert health(10.0, 0.1, None, quiet, faulty) == "degraded"
+    assert health(10.0, 0.1, None, faulty, faulty) == "ok"
+    assert health(10.0, 0.1, AID_START_GRACE_S - 1.0, quiet, quiet) == "starting"
+    assert health(10.0, 0.1, AID_START_GRACE_S + 1.0, quiet, quiet) == "degraded"
