@@ -13,13 +13,12 @@ import time
 
 import pytest
 import zenoh
-from daemon_harness import RunningDaemon, daemon_config, free_port
 from sinsalign.protocol import messages
 from sinsalign.service.config import ConfigError
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.inbox import MAX_MESSAGE_BYTES, Inbox
 from sinsalign.service.zenoh_session import open_session
-from test_daemon_inputs import imu_data, wait_until
+from support.daemon_harness import RunningDaemon, daemon_config, free_port, imu_data, wait_until
 
 
 def test_the_inbox_is_bounded_in_messages_and_bytes_and_refuses_oversized_payloads():

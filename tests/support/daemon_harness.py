@@ -1,17 +1,22 @@
-"""Shared by the daemon tests: a configuration on free loopback ports, a subscriber session, start-up."""
+"""Shared by the daemon tests: a configuration on free loopback ports, a subscriber session, start-up, the
+simulated samples they play, the comparison with the offline replay, and waiting for a condition."""
 from __future__ import annotations
 
+import json
 import threading
 import time
 from pathlib import Path
 
+import numpy as np
 from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
-from sinsalign.service.align.conventions import DEG
+from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.config import Config, ZenohConfig, config_from_mapping
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.zenoh_session import open_session
 from sinsalign.tools.demo import free_loopback_port
+from sinsalign.tools.replay import replay
+from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
 SCENARIO = "seed000-swing"
@@ -65,8 +70,6 @@ def run_daemon(daemon: Daemon) -> threading.Thread:
     return thread
 
 
-
-
 class RunningDaemon:
     """A daemon (serial on ``serial_path`` if given) with a subscriber, started; ``stop()`` ends both."""
 
@@ -88,3 +91,36 @@ class RunningDaemon:
         self.thread.join(timeout=5)
         self.subscriber.close()
         assert not self.thread.is_alive()
+
+
+def wait_until(condition, timeout_s: float = 10.0) -> bool:
+    """Poll ``condition`` every 20 ms until it holds or ``timeout_s`` passed; whether it holds at the end."""
+    deadline = time.monotonic() + timeout_s
+    while not condition() and time.monotonic() < deadline:
+        time.sleep(0.02)
+    return bool(condition())
+
+
+def samples(seconds: float = SECONDS):
+    scenario = get_scenario(SCENARIO)
+    return list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 7,
+                         chunk_samples=2000))
+
+
+def imu_data(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    chunks = samples(seconds)
+    return tuple(np.concatenate([getattr(c, name) for c in chunks]) for name in ("t", "dtheta", "dv"))
+
+
+def assert_same_as_replay(received: list[dict], recording: Path, tmp_path: Path, config: Config,
+                          aids: dict[str, str] | None = None) -> None:
+    """The daemon's records against the offline replay of its recording (with the aiding logs ``aids``, kind →
+    path): the same epochs and phases and, to the last digits, the same attitudes."""
+    out = tmp_path / "replayed.jsonl"
+    replay(recording, out, config, progress=False, aids=aids)
+    offline = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [m["t"] for m in received] == [r["t"] for r in offline]
+    C_live = dcm_from_quat(np.array([m["q"] for m in received]))
+    C_offline = dcm_from_quat(np.array([r["q"] for r in offline]))
+    assert np.abs(misalignment(C_live, C_offline)).max() / DEG < 1e-9
+    assert [m["phase"] for m in received] == [r["phase"] for r in offline]

@@ -17,12 +17,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
-from daemon_harness import RunningDaemon, Subscriber
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import encode_imu
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
+from support.daemon_harness import RunningDaemon, Subscriber
 
 SECONDS, FAULT_AT_S, SPEED = 110.0, 20.0, 40.0
 FAST = {"fine": {"enabled": False}, "output": {"period_s": 1.0}}

@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import zenoh
-from daemon_harness import RunningDaemon
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import MSG_AIDING, encode_aiding, encode_frame, encode_imu
 from sinsalign.service.aiding import MAX_INTERVAL_S, AidingFeed, AidingTrack, AidingWait
@@ -38,22 +37,10 @@ from sinsalign.tools.sim.aiding import (
 from sinsalign.tools.sim.imu import ImuChunk, simulate
 from sinsalign.tools.sim.scenarios import Scenario, daemon_sections, get_scenario
 from sinsalign.tools.virtual_imu import AidingPlayback, FramePlayer, PtyPair, encode_samples, write_all
-from test_daemon_e2e import assert_same_as_replay, samples
+from support.daemon_harness import RunningDaemon, assert_same_as_replay, imu_data, wait_until
 
 SECONDS = 20.0
 HALF = 2000   # samples: the first 10 s over serial, the rest over Zenoh
-
-
-@pytest.fixture
-def pty_pair():
-    pair = PtyPair()
-    yield pair
-    pair.close()
-
-
-def imu_data(seconds: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    chunks = samples(seconds)
-    return tuple(np.concatenate([getattr(c, name) for c in chunks]) for name in ("t", "dtheta", "dv"))
 
 
 @pytest.fixture
@@ -77,10 +64,12 @@ def write_stream(fd: int, data: bytes) -> None:
         write_all(fd, data[at:at + 4096])
 
 
-def wait_until(condition, timeout_s: float = 10.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition() and time.monotonic() < deadline:
-        time.sleep(0.02)
+def wait_for_status(subscriber, **counters: int) -> None:
+    """Wait for a status message that arrives from now on and shows ``counters`` (at most a status period when
+    the daemon is done; it used to be a fixed 0.3-s sleep)."""
+    seen = len(subscriber.status)
+    wait_until(lambda: len(subscriber.status) > seen
+               and all(subscriber.status[-1]["counters"].get(name) == value for name, value in counters.items()))
 
 
 def test_serial_and_zenoh_inputs_together_both_reach_the_pipeline(tmp_path, pty_pair, running):
@@ -97,7 +86,7 @@ def test_serial_and_zenoh_inputs_together_both_reach_the_pipeline(tmp_path, pty_
         sample = messages.ImuSample(seq, float(t[k]), tuple(dtheta[k]), tuple(dv[k]), 0)
         publisher.put(messages.pack(messages.imu_message(sample)))
     subscriber.wait_for(int(SECONDS / config.output.period_s), timeout_s=15)
-    time.sleep(0.3)   # a status period
+    wait_for_status(subscriber, samples_used=n)
     run.stop()
     counters = subscriber.status[-1]["counters"]
     assert (counters["samples_in_serial"], counters["samples_in_zenoh"]) == (HALF, n - HALF)
@@ -134,7 +123,7 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
             aid_seq += 1
     write_stream(pty_pair.master_fd, b"".join(stream))
     wait_until(lambda: daemon.counters.samples_used == n)
-    time.sleep(0.3)   # a status period
+    wait_for_status(subscriber, samples_used=n)
     run.stop()
     counters = subscriber.status[-1]["counters"]
     assert counters["samples_used"] == counters["samples_in_serial"] == n
@@ -153,7 +142,7 @@ def test_serial_aiding_frames_are_decoded_counted_and_are_no_imu_sequence_gaps(p
 def test_the_daemon_tells_when_the_data_are_far_noisier_than_its_datasheet(tmp_path, pty_pair, running):
     """GIVEN [sensor] figures ten times quieter than the IMU on the line (the 200 s of the seed-000 swing as serial
     frames), THEN the status's last_error names the noise the data show and says σ takes it (the pipeline's
-    verdict once the residual shows it surely louder, tests/test_noise_check.py), and nothing counts as a fault."""
+    verdict once the residual shows it surely louder, tests/unit/test_noise_check.py), and nothing counts as a fault."""
     scenario = get_scenario("seed000-swing")
     sections = daemon_sections(scenario)
     sections["sensor"] = {**sections["sensor"], "acc_vrw_ug_rthz": sections["sensor"]["acc_vrw_ug_rthz"] / 10}
@@ -161,7 +150,7 @@ def test_the_daemon_tells_when_the_data_are_far_noisier_than_its_datasheet(tmp_p
     chunk = simulated_run(scenario, 200.0)
     write_stream(pty_pair.master_fd, encode_samples(chunk.t, chunk.dtheta, chunk.dv, 0))
     wait_until(lambda: run.daemon.counters.samples_used == len(chunk.t))
-    time.sleep(0.3)   # a status period
+    wait_for_status(run.subscriber, samples_used=len(chunk.t))
     run.stop()
     status = run.subscriber.status[-1]
     assert "accelerometer noise" in status["last_error"] and "σ uses the measured figure" in status["last_error"]
@@ -217,7 +206,7 @@ def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_o
     sender.join()
     n_records = int(seconds / run.config.output.period_s)
     subscriber.wait_for(n_records, timeout_s=30)
-    time.sleep(0.3)
+    wait_for_status(subscriber, samples_used=len(chunk.t), odo_epochs=len(epochs))
     run.stop()
     counters = subscriber.status[-1]["counters"]
     assert counters["odo_epochs"] == len(epochs) and counters["samples_used"] == len(chunk.t)
@@ -251,7 +240,7 @@ def run_aided(tmp_path: Path, pty_pair: PtyPair, running, scenario: Scenario, ki
         write_stream(pty_pair.master_fd, frames_with_aiding(chunk, kind, epochs, late_s))
     n_records = int(seconds / run.config.output.period_s)
     subscriber.wait_for(n_records, timeout_s=20)
-    time.sleep(0.3)   # a status period
+    wait_for_status(subscriber, samples_used=len(chunk.t), **{f"{kind}_epochs": len(epochs)})
     run.stop()
     counters = subscriber.status[-1]["counters"]
     assert counters[f"{kind}_epochs"] == len(epochs) and counters["samples_used"] == len(chunk.t)

@@ -15,12 +15,12 @@ import time
 from pathlib import Path
 
 import pytest
-from daemon_harness import daemon_config, free_port
 from sinsalign.protocol import messages
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.serial_port import SerialPort
 from sinsalign.service.zenoh_session import open_session
 from sinsalign.tools.virtual_imu import PtyPair, write_all
+from support.daemon_harness import daemon_config, free_port
 
 from sinsalign.cli import main
 

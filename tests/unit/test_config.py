@@ -266,7 +266,7 @@ def test_eval_refuses_a_configuration_for_an_aided_table(capsys: pytest.CaptureF
 
 
 def test_every_aided_eval_table_resolves_to_its_table_and_plot() -> None:
-    from sinsalign.cli import AIDED_TABLES, _tool
+    from sinsalign.tools.eval_command import AIDED_TABLES, _tool
     for table, plot in AIDED_TABLES.values():
         assert callable(_tool(table)) and callable(_tool(plot))
 

@@ -574,7 +574,7 @@ def rule_of(default: object, metadata: Any) -> str:
 
 
 def test_the_reference_states_every_range() -> None:
-    reference = (Path(__file__).parents[1] / "docs" / "reference.md").read_text(encoding="utf-8")
+    reference = (Path(__file__).parents[2] / "docs" / "reference.md").read_text(encoding="utf-8")
     config = Config()
     for section in fields(config):
         table = getattr(config, section.name)

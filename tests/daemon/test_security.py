@@ -26,7 +26,6 @@ from cryptography import x509
 from cryptography.hazmat.primitives import hashes, serialization
 from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
-from daemon_harness import RunningDaemon, daemon_config, free_port, run_daemon
 from sinsalign.protocol import messages
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.serial_port import SerialPort
@@ -34,8 +33,9 @@ from sinsalign.service.zenoh_session import open_session
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
+from support.daemon_harness import RunningDaemon, daemon_config, free_port, run_daemon, wait_until
 
-EXAMPLE = Path(__file__).resolve().parents[1] / "docs" / "zenoh-mtls.json5"
+EXAMPLE = Path(__file__).resolve().parents[2] / "docs" / "zenoh-mtls.json5"
 EXAMPLE_FOLDER = "/etc/sinsalign/tls"
 EXAMPLE_ENDPOINT = "tls/localhost:7447"
 IMU_SOURCE, BRIDGE, INTRUDER = "imu-source", "bridge", "intruder"
@@ -202,13 +202,6 @@ FAKE_ATTITUDE = messages.pack({"v": messages.VERSION, "unit": "unit1", "t": -1.0
                                "pitch_deg": 0.0, "roll_deg": 0.0, "heading_sigma_deg": 0.01,
                                "level_sigma_deg": 0.01, "q": [1.0, 0.0, 0.0, 0.0], "phase": "fine"})
 """A well-formed attitude message nobody computed (t = -1 s)."""
-
-
-def wait_until(condition, timeout_s: float = 5.0) -> bool:
-    deadline = time.monotonic() + timeout_s
-    while not condition() and time.monotonic() < deadline:
-        time.sleep(0.02)
-    return condition()
 
 
 def state_replies(session: zenoh.Session, key: str) -> list[dict]:

@@ -9,9 +9,9 @@ from __future__ import annotations
 import json
 
 import zenoh
-from daemon_harness import free_port
 from sinsalign.service.config import ZenohConfig
 from sinsalign.service.zenoh_session import DEFAULT_LISTEN, open_session, session_config
+from support.daemon_harness import free_port
 
 
 def value(conf: zenoh.Config, key: str):

@@ -1,4 +1,6 @@
-"""Shared by the aided-mode tests: a simulated seed through a pipeline with its aiding feed."""
+"""Shared by the aided-mode tests: a simulated seed through a pipeline with its aiding feed, and its errors."""
+import numpy as np
+from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.tools.sim.imu import simulate
 
 
@@ -12,3 +14,9 @@ def process_simulation(pipeline, scenario, seed, feed, piece=None):
             s = slice(k, k + step)
             records += pipeline.process(chunk.t[s], chunk.dtheta[s], chunk.dv[s], feed.aid_at(chunk.t[s]))
     return records
+
+
+def errors_deg(scenario, records):
+    """Output epochs t (N,) in s and the misalignment φ (N, 3: E, N, U) of ``records`` against the truth, degrees."""
+    t = np.array([r.t for r in records])
+    return t, misalignment(dcm_from_quat(np.array([r.q for r in records])), scenario.motion.attitude(t)) / DEG

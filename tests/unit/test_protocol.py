@@ -36,7 +36,7 @@ from sinsalign.protocol.serial_frame import (
 )
 from sinsalign.service.config import ConfigError, config_from_mapping
 
-VECTORS = json.loads((Path(__file__).parent / "vectors" / "serial_frames.json").read_text())
+VECTORS = json.loads((Path(__file__).parents[1] / "vectors" / "serial_frames.json").read_text())
 IMU_VECTORS = [v for v in VECTORS if "dtheta_rad" in v]
 AIDING_VECTORS = [v for v in VECTORS if "kind" in v]
 REJECTED_AIDING_VECTORS = [v for v in VECTORS if v.get("msg_type") == MSG_AIDING and "error" in v]

@@ -7,48 +7,13 @@ every frame.
 """
 from __future__ import annotations
 
-import json
 import time
-from pathlib import Path
 
-import numpy as np
 import pytest
 import zenoh
-from daemon_harness import SCENARIO, SECONDS, RunningDaemon, free_port
 from sinsalign.protocol import messages
-from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
-from sinsalign.service.config import Config
-from sinsalign.tools.replay import replay
-from sinsalign.tools.sim.imu import simulate
-from sinsalign.tools.sim.scenarios import get_scenario
-from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
-
-
-def samples(seconds: float = SECONDS):
-    scenario = get_scenario(SCENARIO)
-    return list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 7,
-                         chunk_samples=2000))
-
-
-def assert_same_as_replay(received: list[dict], recording: Path, tmp_path: Path, config: Config,
-                          aids: dict[str, str] | None = None) -> None:
-    """The daemon's records against the offline replay of its recording (with the aiding logs ``aids``, kind →
-    path): the same epochs and phases and, to the last digits, the same attitudes."""
-    out = tmp_path / "replayed.jsonl"
-    replay(recording, out, config, progress=False, aids=aids)
-    offline = [json.loads(line) for line in out.read_text().splitlines()]
-    assert [m["t"] for m in received] == [r["t"] for r in offline]
-    C_live = dcm_from_quat(np.array([m["q"] for m in received]))
-    C_offline = dcm_from_quat(np.array([r["q"] for r in offline]))
-    assert np.abs(misalignment(C_live, C_offline)).max() / DEG < 1e-9
-    assert [m["phase"] for m in received] == [r["phase"] for r in offline]
-
-
-@pytest.fixture
-def pty_pair():
-    pair = PtyPair()
-    yield pair
-    pair.close()
+from sinsalign.tools.virtual_imu import FramePlayer
+from support.daemon_harness import SECONDS, RunningDaemon, assert_same_as_replay, free_port, samples
 
 
 def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_replay(tmp_path, pty_pair):

@@ -14,14 +14,13 @@ import time
 import numpy as np
 import pytest
 import zenoh
-from daemon_harness import RunningDaemon, daemon_config, free_port
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import AIDING_KIND_CODES, MSG_AIDING, AidingPayloadError, Frame, decode_aiding
 from sinsalign.service.ingest import Ingest
 from sinsalign.service.restarting import finite_record
-from test_daemon_inputs import imu_data, wait_until
+from support.daemon_harness import RunningDaemon, daemon_config, free_port, imu_data, wait_until
 
 SECONDS = 12.0
 

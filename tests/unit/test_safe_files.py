@@ -15,10 +15,10 @@ import sys
 from pathlib import Path
 
 import pytest
-from daemon_harness import daemon_config, free_port
 from sinsalign.service.daemon import Daemon
 from sinsalign.service.safe_files import open_private
 from sinsalign.service.zenoh_session import open_session
+from support.daemon_harness import daemon_config, free_port
 
 
 def mode_of(path: Path) -> int:

@@ -12,7 +12,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from aided_runs import process_simulation
 from sinsalign.protocol import messages
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
@@ -25,6 +24,7 @@ from sinsalign.tools.sim.aiding import gnss_epochs, with_gnss_faults
 from sinsalign.tools.sim.files import write_simulation
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
+from support.aided_runs import errors_deg, process_simulation
 
 
 def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None, counters=None, config=None):
@@ -42,11 +42,6 @@ def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None,
     if counters is not None:
         counters.update(pipeline.aiding_counters())
     return records
-
-
-def errors_deg(scenario, records):
-    t = np.array([r.t for r in records])
-    return t, misalignment(dcm_from_quat(np.array([r.q for r in records])), scenario.motion.attitude(t)) / DEG
 
 
 def test_the_inertial_frame_of_a_site_that_does_not_move_is_the_fixed_site_formula():

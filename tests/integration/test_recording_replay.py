@@ -11,12 +11,11 @@ import json
 import time
 
 import numpy as np
-from daemon_harness import RunningDaemon
 from sinsalign.protocol.imu_log import RESTART_MARKER
 from sinsalign.protocol.serial_frame import DTHETA_LSB_RAD
 from sinsalign.tools.replay import replay
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
-from test_daemon_inputs import imu_data, wait_until
+from support.daemon_harness import RunningDaemon, imu_data, wait_until
 
 WIRE_ONLY = {"v", "unit"}
 

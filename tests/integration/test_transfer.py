@@ -12,7 +12,6 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from aided_runs import process_simulation
 from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.config import config_from_mapping
@@ -21,6 +20,7 @@ from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import master_epochs, with_master_faults, write_master_log
 from sinsalign.tools.sim.files import write_simulation
 from sinsalign.tools.sim.scenarios import get_scenario, seed002_flight
+from support.aided_runs import errors_deg, process_simulation
 
 
 def run_transfer(scenario, seed=1, overrides=None, faults=None, piece=None):
@@ -33,11 +33,6 @@ def run_transfer(scenario, seed=1, overrides=None, faults=None, piece=None):
     feed = AidingFeed(AidingTrack(10, config.aiding.master_latency_s, config.aiding.max_gap_s), iter([epochs]))
     records = process_simulation(pipeline, scenario, seed, feed, piece)
     return records, pipeline
-
-
-def errors_deg(scenario, records):
-    t = np.array([r.t for r in records])
-    return t, misalignment(dcm_from_quat(np.array([r.q for r in records])), scenario.motion.attitude(t)) / DEG
 
 
 def mounting_error_deg(scenario, pipeline):
