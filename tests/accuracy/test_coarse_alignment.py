@@ -78,7 +78,7 @@ def test_auto_takes_gls_where_the_datasheet_gyro_walk_dominates(name: str, chose
 def test_turntable_with_a_noisy_gyro():
     """OPREQ leaves the gyro's angle random walk out of its noise model (it cannot weigh a walk); the GLS
     solver, which the default "auto" takes for this datasheet, whitens it and reaches the walk's floor
-    N / (Ω cos L √T) (issue 3: seed STD ≤ 0.12°)."""
+    N / (Ω cos L √T) (seed STD ≤ 0.12°)."""
     opreq = monte_carlo("seed000-turntable", SEEDS, {"alignment": {"solver": "opreq"}, **COARSE_ONLY}, progress=False)
     gls = monte_carlo("seed000-turntable", SEEDS, COARSE_ONLY, progress=False)
     s, g = window_stats(opreq, (201, 300)), window_stats(gls, (201, 300))

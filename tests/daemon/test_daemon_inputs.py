@@ -66,7 +66,7 @@ def write_stream(fd: int, data: bytes) -> None:
 
 def wait_for_status(subscriber, **counters: int) -> None:
     """Wait for a status message that arrives from now on and shows ``counters`` (at most a status period when
-    the daemon is done; it used to be a fixed 0.3-s sleep)."""
+    the daemon is done)."""
     seen = len(subscriber.status)
     wait_until(lambda: len(subscriber.status) > seen
                and all(subscriber.status[-1]["counters"].get(name) == value for name, value in counters.items()))
@@ -451,9 +451,9 @@ def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
 
 
 def test_the_wait_gives_back_every_sample_once_in_order_whatever_the_pushes():
-    """The held samples live in one store that grows in doublings (they used to be re-concatenated on every push):
-    pushes of 1 to 700 rows, past the store's first size, come back whole, in order, and a released block is the
-    caller's (a later push does not overwrite it)."""
+    """The held samples live in one store that grows in doublings (not re-concatenated on every push): pushes of 1 to
+    700 rows, past the store's first size, come back whole, in order, and a released block is the caller's (a later
+    push does not overwrite it)."""
     rng = np.random.default_rng(4)
     rows = np.column_stack((np.arange(1, 3001) / 200.0, rng.normal(size=(3000, 6))))
     wait = AidingWait(AidingTrack(1), max_wait_s=2.0)   # no epoch ever: a sample leaves 2 s of data after it

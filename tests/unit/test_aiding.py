@@ -188,8 +188,8 @@ def test_a_master_track_interpolates_its_attitude_as_a_rotation_whatever_the_qua
                                   "seed002-ideal"])
 def test_sim_replay_eval_and_the_live_bench_configure_an_aiding_sensor_alike(tmp_path: Path, name: str) -> None:
     """What a simulated aiding log states of its sensor is read back by the replay as the evaluation and the live
-    bench configure it, and the bench's [aiding] table is a valid configuration. An ideal sensor states no noise:
-    the demo used to configure its 0 and stop with "aiding.gnss_vel_std_mps: must be > 0"."""
+    bench configure it, and the bench's [aiding] table is a valid configuration. An ideal sensor states no noise,
+    and the demo must not configure that 0 (it would stop with "aiding.gnss_vel_std_mps: must be > 0")."""
     from sinsalign.service.config import config_from_mapping
     from sinsalign.tools.sim.aiding import scenario_aiding
     from sinsalign.tools.sim.files import write_simulation

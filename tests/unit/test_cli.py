@@ -31,8 +31,8 @@ from sinsalign.cli import main
 ])
 def test_a_number_out_of_range_is_a_usage_error(capsys: pytest.CaptureFixture[str], argv: list[str],
                                                message: str) -> None:
-    """A zero or negative duration used to fall back to the scenario's length or write a header-only log with exit 0;
-    --realtime silently overrode --speed. Now each is refused before anything runs, the option named."""
+    """A zero or negative duration, or --realtime with --speed, is refused before anything runs, the option named
+    (not a fall-back to the scenario's length, a header-only log with exit 0, or one option silently winning)."""
     with pytest.raises(SystemExit) as stop:
         main(argv)
     assert stop.value.code == 2
@@ -57,8 +57,8 @@ def read_imu_frames(fd: int, stop: threading.Event, into: list) -> None:
 
 
 def test_bench_plays_the_data_sim_writes_for_the_same_seed(tmp_path: Path) -> None:
-    """seed003 draws each IMU's bias signs per seed: bench --seed used to skip the draw, so its "seed 2" was other
-    data than sim --seed 2's. Frames read back from a pty agree with sim's log to the wire's resolution."""
+    """seed003 draws each IMU's bias signs per seed, and bench --seed draws them as sim --seed does: frames read back
+    from a pty agree with sim's log of the same seed to the wire's resolution."""
     assert main(["sim", "seed003-20", "--seed", "2", "--duration", "0.5", "--out-dir", str(tmp_path)]) == 0
     t, dtheta, dv = (np.concatenate(c) for c in zip(*open_imu_log(tmp_path / "imu.csv").blocks(), strict=True))
     pty = PtyPair()

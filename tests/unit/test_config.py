@@ -246,8 +246,8 @@ def test_cli_reports_config_error(capsys: pytest.CaptureFixture[str], tmp_path: 
 
 
 def test_eval_applies_the_configuration_file(tmp_path: Path) -> None:
-    """``eval --config`` runs the scenario with the file's configuration (it used to be read by the parser and left
-    unused): a file choosing the q-method gives the table ``--solver qmethod`` gives, not the default OPREQ's."""
+    """``eval --config`` runs the scenario with the file's configuration (not only read and checked): a file choosing
+    the q-method gives the table ``--solver qmethod`` gives, not the default OPREQ's."""
     config = write(tmp_path, '[alignment]\nsolver = "qmethod"\n')
 
     def table(*options: str) -> str:

@@ -227,7 +227,7 @@ def master_with(master_text: str, keys: str = "", row: int | None = None, cells:
 
 def test_a_master_lever_arm_of_1e300_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path,
                                                master_run) -> None:
-    """It used to write NaN into every record; a lever arm is within a vehicle (|lever| ≤ 100 m)."""
+    """A lever arm is within a vehicle (|lever| ≤ 100 m): a huge one would put NaN into every record."""
     imu, master = master_run
     aid = write_log(tmp_path, master_with(master, "# lever_x_m=1e300\n"), "master.csv")
     with pytest.raises(LogFormatError, match="lever_x_m"):

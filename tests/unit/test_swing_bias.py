@@ -17,7 +17,7 @@ from sinsalign.tools.evaluate import COARSE_ONLY, run_once, window_stats
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import Scenario, get_scenario
 
-SWING_BIAS = config_from_mapping(COARSE_ONLY)   # the fit is on by default (issue 3's figures: test_coarse_alignment)
+SWING_BIAS = config_from_mapping(COARSE_ONLY)   # the fit is on by default (its figures: test_coarse_alignment)
 PLAIN = config_from_mapping({"alignment": {"swing_bias": False}, **COARSE_ONLY})
 
 
