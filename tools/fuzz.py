@@ -1143,8 +1143,8 @@ def run_all(inputs: int, values: int, seed: int = 0,
     return tallies
 
 
-TLS_ROW = ("| TLS peers (Zenoh sessions) | not fuzzed | — | — | — | `tests/daemon/test_security.py`: without a "
-           "certificate of the CA no session opens; a CA-signed client without rights gets nothing and feeds "
+TLS_ROW = ("| TLS peers (Zenoh connections) | not fuzzed | — | — | — | `tests/daemon/test_security.py`: without a "
+           "certificate of the CA no connection opens; a CA-signed client without rights gets nothing and feeds "
            "nothing | — | — |")
 """The input class the fuzzer does not reach: who may open a session at all, held by mutual TLS and access
 control, and tested on the real daemon."""
