@@ -366,14 +366,6 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
         line_no += len(lines)
 
 
-def read_rows(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
-              chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
-              limits: RowLimits | None = None) -> Iterator[np.ndarray]:
-    """The blocks of :func:`read_segments` without their restart marks."""
-    for _, block in read_segments(stream, path, first_line, columns, chunk_rows, increasing, limits):
-        yield block
-
-
 @dataclass(frozen=True, slots=True)
 class ImuLog:
     """An IMU log opened for streaming: its header and an iterator of (t, dtheta, dv) blocks."""
@@ -398,21 +390,26 @@ class ImuLog:
                  ) -> Iterator[tuple[str | None, np.ndarray, np.ndarray, np.ndarray]]:
         """(restart, t, Δθ, Δv) blocks as :meth:`blocks`, ``restart`` the reason of the :data:`RESTART_MARKER` line
         before the block (a daemon's recording: the alignment started over there), else None."""
-        with open(self.path, encoding="utf-8", errors="replace") as stream:
-            _, consumed = read_header(stream, self.path)
-            for reason, block in read_segments(stream, self.path, consumed + 1, IMU_COLUMNS, chunk_rows,
-                                               limits=limits):
-                yield reason, block[:, 0], block[:, 1:4], block[:, 4:7]
+        for reason, block in stream_segments(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits):
+            yield reason, block[:, 0], block[:, 1:4], block[:, 4:7]
+
+
+def stream_segments(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,
+                    increasing: bool = True, ranges: Mapping[str, Range] = IMU_KEY_RANGES,
+                    limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
+    """The (restart, block) pieces of :func:`read_segments` of a log with these columns, after its header (its keys
+    checked against ``ranges``), each value within ``limits``."""
+    with open(path, encoding="utf-8", errors="replace") as stream:
+        _, consumed = read_header(stream, path, columns, required, ranges)
+        yield from read_segments(stream, path, consumed + 1, columns, chunk_rows, increasing, limits)
 
 
 def stream_rows(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,
                 increasing: bool = True, ranges: Mapping[str, Range] = IMU_KEY_RANGES,
                 limits: RowLimits | None = None) -> Iterator[np.ndarray]:
-    """The data rows of a log with these columns, in (N, len(columns)) blocks after its header (its keys checked
-    against ``ranges``), each value within ``limits``."""
-    with open(path, encoding="utf-8", errors="replace") as stream:
-        _, consumed = read_header(stream, path, columns, required, ranges)
-        yield from read_rows(stream, path, consumed + 1, columns, chunk_rows, increasing, limits)
+    """The blocks of :func:`stream_segments` without their restart marks."""
+    for _, block in stream_segments(path, columns, required, chunk_rows, increasing, ranges, limits):
+        yield block
 
 
 def open_imu_log(path: str | Path) -> ImuLog:
