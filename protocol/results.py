@@ -49,14 +49,24 @@ class ResultRecord:
             d["trace_P"] = None  # no observation yet; JSON has no infinity
         return d
 
+    @property
+    def finite(self) -> bool:
+        """Every number is finite (trace_P excepted: infinite before the first observation, carried as null)."""
+        return not _non_finite(self.wire_dict())
+
     def to_json(self) -> str:
         """One line of strict JSON. A number that is not finite (trace_P aside, carried as null) is a fault upstream;
         it is refused here, naming the fields, rather than written as NaN or Infinity, which no JSON reader takes."""
         d = self.wire_dict()
-        bad = [name for name, value in d.items() if not _finite(value)]
+        bad = _non_finite(d)
         if bad:
             raise ValueError(f"result at t = {self.t!r}: {', '.join(bad)} not finite; not written")
         return json.dumps(d, separators=(",", ":"), allow_nan=False)
+
+
+def _non_finite(wire: dict[str, Any]) -> list[str]:
+    """The fields of a wire dict that hold a number that is not finite."""
+    return [name for name, value in wire.items() if not _finite(value)]
 
 
 def _finite(value: Any) -> bool:

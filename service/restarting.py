@@ -21,14 +21,6 @@ def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
     return {**before, **{key: before.get(key, 0) + count for key, count in now.items()}}
 
 
-def finite_record(record: ResultRecord) -> bool:
-    """Every number of ``record`` is finite (trace_P excepted: infinite before the first observation)."""
-    numbers = (record.t, *record.q, record.pitch_deg, record.roll_deg, record.heading_deg, record.heading_sigma_deg,
-               record.level_sigma_deg, record.rho, *(record.mount_q or ()),
-               0.0 if record.mount_sigma_deg is None else record.mount_sigma_deg)
-    return bool(np.isfinite(numbers).all())
-
-
 class RestartingPipeline:
     """The current pipeline of ``make``, replaced by a fresh one on :meth:`restart` or when a step fails; the
     disturbance and aiding counts of the pipelines before carry on. ``report`` gets a line per failure."""
@@ -60,7 +52,7 @@ class RestartingPipeline:
         for good."""
         try:
             records = self.pipeline.process(t, dtheta, dv, aid)
-            if all(finite_record(r) for r in records):
+            if all(r.finite for r in records):
                 return records, None
             failure = "a non-finite attitude or σ"
         except Exception as exc:   # whatever the estimator raised, the alignment goes on

@@ -67,7 +67,6 @@ from sinsalign.protocol.serial_frame import (
 )
 from sinsalign.service.config import Config, ConfigError, config_from_mapping, load_config
 from sinsalign.service.ingest import Ingest, gate_for
-from sinsalign.service.restarting import finite_record
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.files import log_keys
 from sinsalign.tools.sim.imu import simulate
@@ -565,6 +564,12 @@ def _feed(ingest: Ingest, rng: np.random.Generator, samples: Sequence) -> list[R
         records += ingest.feed_samples(samples[at:at + size])
         at += size
     return records
+
+
+def finite_record(record: ResultRecord) -> bool:
+    """Whether a record the stream gave holds finite numbers only (:attr:`ResultRecord.finite`): the check of the
+    sample class, kept apart from the one the alignment makes of its own steps."""
+    return record.finite
 
 
 def _check_stream(tally: Tally, stream: HostileStream, before: list[ResultRecord], tail: list[ResultRecord],

@@ -19,7 +19,6 @@ from hypothesis import strategies as st
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import AIDING_KIND_CODES, MSG_AIDING, AidingPayloadError, Frame, decode_aiding
 from sinsalign.service.ingest import Ingest
-from sinsalign.service.restarting import finite_record
 from support.daemon_harness import RunningDaemon, daemon_config, free_port, imu_data, wait_until
 
 SECONDS = 12.0
@@ -47,7 +46,7 @@ def feed_in_pieces(ingest: Ingest, samples: list, piece: int = 97) -> list:
 
 
 def assert_goes_on(records: list, t_end: float) -> None:
-    assert records and all(finite_record(r) for r in records)
+    assert records and all(r.finite for r in records)
     assert records[-1].t >= t_end - 1.0
 
 
@@ -201,7 +200,7 @@ def run_with_faults(tmp_path, data, faults) -> None:
         rows[k, column] = value
     ingest = live_ingest(tmp_path, [])
     records = feed_in_pieces(ingest, as_samples(rows[:, 0], rows[:, 1:4], rows[:, 4:7]), piece=37)
-    assert all(finite_record(r) for r in records)
+    assert all(r.finite for r in records)
     assert records and records[-1].t >= t[-1] - 1.0     # the last 2 s are clean: the alignment publishes again
     assert ingest.all_counters()["estimator_restarts"] == 0
 
