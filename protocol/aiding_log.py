@@ -27,7 +27,13 @@ from .imu_log import (
     shown,
     stream_rows,
 )
-from .plausibility import HEIGHT_RANGE_M, QUATERNION_NORM_TOLERANCE, SPEED_LIMITS_MPS
+from .plausibility import (
+    HEIGHT_RANGE_M,
+    LATITUDE_RANGE_DEG,
+    LONGITUDE_RANGE_DEG,
+    QUATERNION_NORM_TOLERANCE,
+    SPEED_LIMITS_MPS,
+)
 
 LEVER_KEYS = ("lever_x_m", "lever_y_m", "lever_z_m")
 LEVER_RANGE = Range(-100.0, 100.0, why="m: a lever arm within a vehicle")
@@ -40,8 +46,8 @@ MASTER_VELOCITY_STD_RANGE = Range(1e-4, 1.0, why="m/s: an INS's velocity is bett
 """A master INS whose velocity noise is stated in metres per second is no master: transfer alignment's
 heading grows overconfident beyond it."""
 MASTER_ATTITUDE_STD_RANGE = Range(1e-6, 1.0, why="°: an INS's attitude is better than 1°")
-LATITUDE = Range(-90.0, 90.0, why="°")
-LONGITUDE = Range(-180.0, 180.0, why="°")
+LATITUDE = Range(*LATITUDE_RANGE_DEG, why="°")
+LONGITUDE = Range(*LONGITUDE_RANGE_DEG, why="°")
 HEIGHT = Range(*HEIGHT_RANGE_M, why="m")
 QUATERNION_NORM = Range(1.0 - QUATERNION_NORM_TOLERANCE, 1.0 + QUATERNION_NORM_TOLERANCE, why="a rotation")
 

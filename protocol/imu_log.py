@@ -27,7 +27,7 @@ from typing import TextIO
 
 import numpy as np
 
-from .plausibility import HEIGHT_RANGE_M
+from .plausibility import HEIGHT_RANGE_M, LATITUDE_RANGE_DEG, LONGITUDE_RANGE_DEG
 
 IMU_COLUMNS = ("t", "dthx", "dthy", "dthz", "dvx", "dvy", "dvz")
 IMU_WIDTH = len(IMU_COLUMNS)
@@ -95,8 +95,8 @@ class Range:
 
 
 SITE_RANGES = {
-    "lat_deg": Range(-90.0, 90.0, open_low=True, open_high=True, why="°; gyrocompassing needs Ω cos L"),
-    "lon_deg": Range(-180.0, 180.0, why="°"),
+    "lat_deg": Range(*LATITUDE_RANGE_DEG, open_low=True, open_high=True, why="°; gyrocompassing needs Ω cos L"),
+    "lon_deg": Range(*LONGITUDE_RANGE_DEG, why="°"),
     "height_m": Range(*HEIGHT_RANGE_M, why="m: the deepest ocean floor to the edge of space"),
 }
 RATE_RANGE = Range(1.0, 10000.0, why="Hz, positive: no IMU outputs slower than 1 Hz or faster than 10 kHz")
@@ -117,6 +117,9 @@ MAX_TIME_S = 1e10
 """The largest time stamp of any clock (s): Unix time stays below it until the year 2286."""
 TIME_RANGE = Range(-MAX_TIME_S, MAX_TIME_S, why="s")
 G0_MS2 = 9.80665
+"""Standard gravity (m/s² per g): the datasheet unit of an accelerometer's range."""
+RANGE_INTERVALS = 2.0
+"""An increment may span this many sample intervals at full range (a sensor clock's jitter)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -149,11 +152,11 @@ class RowLimits:
 def imu_limits(rate_hz: float) -> RowLimits:
     """What an IMU log's rows may hold at ``rate_hz``: time stamps of any clock, and increments within the widest
     ranges a sensor may be stated to have over twice the sample interval (its clock's jitter)."""
-    interval_s = 2.0 / rate_hz
+    interval_s = RANGE_INTERVALS / rate_hz
     dtheta = math.radians(MAX_GYRO_RANGE_DEG_S) * interval_s
     dv = MAX_ACC_RANGE_G * G0_MS2 * interval_s
-    angle = Range(-dtheta, dtheta, why=f"rad: {MAX_GYRO_RANGE_DEG_S:g} °/s over 2 sample intervals")
-    speed = Range(-dv, dv, why=f"m/s: {MAX_ACC_RANGE_G:g} g over 2 sample intervals")
+    angle = Range(-dtheta, dtheta, why=f"rad: {MAX_GYRO_RANGE_DEG_S:g} °/s over {RANGE_INTERVALS:g} sample intervals")
+    speed = Range(-dv, dv, why=f"m/s: {MAX_ACC_RANGE_G:g} g over {RANGE_INTERVALS:g} sample intervals")
     return RowLimits({"t": TIME_RANGE, **dict.fromkeys(IMU_COLUMNS[1:4], angle),
                       **dict.fromkeys(IMU_COLUMNS[4:], speed)})
 

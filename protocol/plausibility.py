@@ -17,6 +17,8 @@ MAX_GNSS_SPEED_MPS = 600.0
 """A GNSS receiver: civil receivers stop reporting at 515 m/s (export rules)."""
 MAX_MASTER_SPEED_MPS = 1200.0
 """A master INS: a carrier aircraft at Mach 3."""
+LATITUDE_RANGE_DEG = (-90.0, 90.0)
+LONGITUDE_RANGE_DEG = (-180.0, 180.0)
 HEIGHT_RANGE_M = (-12_000.0, 100_000.0)
 """The deepest ocean floor to the edge of space (m above the ellipsoid)."""
 QUATERNION_NORM_TOLERANCE = 1e-3
@@ -29,10 +31,10 @@ SPEED_FIELDS = {"odo": "v_b", "gnss": "v_enu", "master": "v_enu"}
 
 def position_problem(lat_deg: float, lon_deg: float, h_m: float) -> str | None:
     """Why (lat_deg, lon_deg, h_m) is no place on Earth, or None."""
-    if not -90.0 <= lat_deg <= 90.0:
-        return f"latitude {lat_deg:.6g}° is outside ±90°"
-    if not -180.0 <= lon_deg <= 180.0:
-        return f"longitude {lon_deg:.6g}° is outside ±180°"
+    if not LATITUDE_RANGE_DEG[0] <= lat_deg <= LATITUDE_RANGE_DEG[1]:
+        return f"latitude {lat_deg:.6g}° is outside ±{LATITUDE_RANGE_DEG[1]:g}°"
+    if not LONGITUDE_RANGE_DEG[0] <= lon_deg <= LONGITUDE_RANGE_DEG[1]:
+        return f"longitude {lon_deg:.6g}° is outside ±{LONGITUDE_RANGE_DEG[1]:g}°"
     if not HEIGHT_RANGE_M[0] <= h_m <= HEIGHT_RANGE_M[1]:
         return f"height {h_m:.6g} m is outside {HEIGHT_RANGE_M[0]:g}..{HEIGHT_RANGE_M[1]:g} m"
     return None

@@ -15,10 +15,11 @@ import numpy as np
 
 from ..protocol import messages
 from ..protocol.counters import Counters
+from ..protocol.imu_log import G0_MS2, RANGE_INTERVALS
 from ..protocol.results import ResultRecord
 from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
 from .aiding import AidingTrack, AidingWait
-from .align.conventions import DEG, G_TO_MS2
+from .align.conventions import DEG
 from .align.earth import Site
 from .config import Config
 from .pipeline import AlignmentPipeline, build_pipeline
@@ -29,16 +30,12 @@ AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
 
 
-RANGE_MARGIN = 2.0
-"""An increment may span up to twice the nominal interval (a sensor's clock jitter) at full range."""
-
-
 def gate_for(config: Config) -> SampleGate:
     """The sample gate of the configured IMU: its rate, the daemon's bridging, and the increments its ranges allow."""
-    interval_s = RANGE_MARGIN / config.imu.rate_hz
+    interval_s = RANGE_INTERVALS / config.imu.rate_hz
     return SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples,
                       max_dtheta_rad=config.imu.gyro_range_deg_s * DEG * interval_s,
-                      max_dv_mps=config.imu.acc_range_g * G_TO_MS2 * interval_s)
+                      max_dv_mps=config.imu.acc_range_g * G0_MS2 * interval_s)
 
 
 @dataclass(slots=True)

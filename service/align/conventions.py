@@ -29,10 +29,8 @@ DH_TO_RS = DEG / 3600.0
 """°/h → rad/s."""
 DRH_TO_RRS = DEG / 60.0
 """°/√h → rad/√s (angle random walk)."""
-G_TO_MS2 = 9.80665
-"""g → m/s² (standard gravity, the datasheet unit)."""
 UG_TO_MS2 = 9.80665e-6
-"""µg → m/s²."""
+"""µg → m/s² (standard gravity, the datasheet unit)."""
 EYE3 = np.eye(3)
 """The 3×3 identity, read-only: made once, not in every call of a per-step function."""
 EYE3.flags.writeable = False
