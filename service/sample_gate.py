@@ -73,18 +73,24 @@ class SampleGate:
         dt = 1.0 / self.rate_hz
         segments: list[Segment] = []
         rows: list[np.ndarray] = []
-        for t, dtheta, dv, status, saturated in samples:
-            row = np.array((t, *dtheta, *dv), dtype=float)
-            if not abs(t) <= MAX_TIME_S:
+        samples = list(samples)
+        if not samples:
+            return segments
+        block = np.array([(t, *dtheta, *dv) for t, dtheta, dv, _, _ in samples], dtype=float)
+        flags = np.array([(status, saturated) for *_, status, saturated in samples], dtype=np.int64)
+        dtheta_max, dv_max = np.abs(block[:, 1:4]).max(axis=1), np.abs(block[:, 4:7]).max(axis=1)
+        # a time no clock reads; beyond the range, no sensor's value (a frame flagged saturated is the sensor at full
+        # scale: a restart, below)
+        clockless = ~(np.abs(block[:, 0]) <= MAX_TIME_S)
+        out_of_range = ((dtheta_max > self.max_dtheta_rad) | (dv_max > self.max_dv_mps)) & (flags[:, 1] == 0)
+        for k, row in enumerate(block):
+            t, (status, saturated) = float(row[0]), flags[k]
+            if clockless[k] or out_of_range[k]:
                 self.counters.implausible += 1
-                self.last_error = f"sample at t = {t:.6g} s: no IMU clock reads that (|t| > {MAX_TIME_S:g} s): dropped"
-                continue
-            # a frame flagged saturated is the sensor at full scale (a restart, below); beyond it, no sensor's value
-            if not saturated and (np.abs(row[1:4]).max() > self.max_dtheta_rad
-                                  or np.abs(row[4:7]).max() > self.max_dv_mps):
-                self.counters.implausible += 1
-                self.last_error = (f"sample at t = {t:.6f} s beyond the IMU's range (|Δθ| {np.abs(row[1:4]).max():.3g} "
-                                   f"rad, |Δv| {np.abs(row[4:7]).max():.3g} m/s): dropped")
+                self.last_error = (f"sample at t = {t:.6g} s: no IMU clock reads that (|t| > {MAX_TIME_S:g} s): "
+                                   "dropped" if clockless[k] else
+                                   f"sample at t = {t:.6f} s beyond the IMU's range (|Δθ| {dtheta_max[k]:.3g} rad, "
+                                   f"|Δv| {dv_max[k]:.3g} m/s): dropped")
                 continue
             if self._last is not None and not t > self._last[0]:
                 if not self._hold_behind(row):
