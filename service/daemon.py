@@ -63,10 +63,10 @@ class Daemon:
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
         self._inbox: Inbox[zenoh.ZBytes] = Inbox(INBOX_LIMIT, INBOX_BYTES)
+        self._refuse_a_served_unit()   # before anything is opened: the other daemon's recording stays whole
         self._recording = Recording(config.daemon.record_path, config) if config.daemon.record_path else None
         self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
         self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
-        self._refuse_a_served_unit()
         self._token = session.liveliness().declare_token(self.keys.alive)
         self._queryable = session.declare_queryable(self.keys.state, self._on_query)
         self._imu_sub = (session.declare_subscriber(self.keys.imu, self._on_imu)

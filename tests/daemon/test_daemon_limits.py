@@ -133,6 +133,21 @@ def test_a_second_daemon_on_a_served_unit_id_refuses_to_start(tmp_path):
         run.stop()
 
 
+def test_a_refused_second_daemon_leaves_the_first_ones_recording_whole(tmp_path):
+    run = RunningDaemon(tmp_path)          # records into tmp_path/recorded.csv
+    try:
+        recording = tmp_path / "recorded.csv"
+        wait_until(lambda: recording.stat().st_size > 0)   # the header, flushed with the first status
+        before = recording.read_bytes()
+        same = daemon_config(tmp_path, free_port(), zenoh={"connect": [f"tcp/127.0.0.1:{run.port}"], "listen": []})
+        assert same.daemon.record_path == str(recording)
+        with open_session(same.zenoh) as session, pytest.raises(ConfigError, match="another daemon already serves"):
+            Daemon(same, session)
+        assert before and recording.read_bytes().startswith(before)
+    finally:
+        run.stop()
+
+
 def test_health_follows_input_faults_and_the_aids_grace():
     """The status's health rule alone: no input yet, gone, a fault counter that rose, an aid still awaited."""
     from sinsalign.service.health import AID_START_GRACE_S, NO_INPUT_S, health
