@@ -7,7 +7,8 @@ Little-endian, self-synchronising::
     2      1     protocol version (1)
     3      1     message type (1 = IMU increments; 2 = aiding epoch; others: counted, passed on)
     4      2     payload length N (u16)
-    6      2     sequence counter (u16, +1 per frame of the same type, wraps; one counter per type)
+    6      2     sequence counter (u16, +1 per frame of the same type, wraps; one counter per type, and
+                 for aiding frames one per aiding kind)
     8      8     timestamp (u64, ns on the IMU clock: end of the sample interval / instant of the aiding epoch)
     16     2     header check: the low 16 bits of CRC-32 of bytes 2 .. 15
     18     N     payload
@@ -26,8 +27,9 @@ odo v_b (3), N = 25; gnss lat_deg, lon_deg, h_m, v_enu (3), N = 49; master q (4)
 lat_deg, lon_deg, h_m, N = 81. The header timestamp is the instant the values hold for.
 
 :class:`FrameDecoder` takes bytes in any pieces, finds frames, and counts what it drops. Each
-message type carries its own sequence counter (an IMU and its aiding sources number their frames
-independently), so aiding frames interleaved with IMU frames are never IMU sequence gaps.
+message type carries its own sequence counter, and each aiding kind its own (an IMU and its aiding
+sources number their frames independently), so aiding frames interleaved with IMU frames are never IMU
+sequence gaps, nor an odometer's frames between a receiver's.
 """
 from __future__ import annotations
 
@@ -222,13 +224,14 @@ class FrameDecoder:
     Memory is bounded: the buffer never holds more than one maximal frame plus the last piece.
 
     Each message type has its own sequence counter: ``sequence`` follows the IMU frames (type 1,
-    counters ``seq_*``), ``aiding_sequence`` the aiding frames (type 2, ``aiding_seq_*``); frames
-    of other types are passed on unchecked (counted as ``unknown_type``).
+    counters ``seq_*``), ``aiding_sequences`` the aiding frames (type 2) of each kind code (the
+    payload's first byte; counters ``aiding_seq_*``, summed over the kinds); frames of other types
+    are passed on unchecked (counted as ``unknown_type``).
     """
 
     counters: DecoderCounters = field(default_factory=DecoderCounters)
     sequence: SequenceTracker = field(default_factory=SequenceTracker)
-    aiding_sequence: SequenceTracker = field(default_factory=SequenceTracker)
+    aiding_sequences: dict[int, SequenceTracker] = field(default_factory=dict)
     _buffer: bytearray = field(default_factory=bytearray)
 
     def feed(self, data: bytes) -> list[Frame]:
@@ -274,7 +277,9 @@ class FrameDecoder:
             if msg_type == MSG_IMU:
                 accepted = self.sequence.accept(seq)
             elif msg_type == MSG_AIDING:
-                accepted = self.aiding_sequence.accept(seq)
+                # at most 256 trackers: the kind code is one byte (an empty payload: its own, refused later)
+                kind = frame.payload[0] if frame.payload else -1
+                accepted = self.aiding_sequences.setdefault(kind, SequenceTracker()).accept(seq)
             else:
                 accepted = True
                 self.counters.unknown_type += 1
@@ -286,5 +291,8 @@ class FrameDecoder:
 
     def all_counters(self) -> dict[str, int]:
         """Decoder and sequence counters in one map (the status topic's names)."""
-        return {**self.counters.as_dict(), **self.sequence.counters(),
-                **self.aiding_sequence.counters("aiding_seq_")}
+        aiding: dict[str, int] = SequenceTracker().counters("aiding_seq_")
+        for tracker in self.aiding_sequences.values():
+            for name, count in tracker.counters("aiding_seq_").items():
+                aiding[name] += count
+        return {**self.counters.as_dict(), **self.sequence.counters(), **aiding}

@@ -21,7 +21,7 @@ clock mismatch) fills it to ``capacity`` epochs; beyond that new epochs are drop
 """
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -246,6 +246,14 @@ class AidingFeed:
         return rows
 
 
+def aid_rows(feeds: Mapping[str, AidingFeed], kinds: Sequence[str], t: np.ndarray) -> np.ndarray | None:
+    """The aiding of samples at IMU times t (N,) for a pipeline that takes ``kinds`` (its ``aid_kinds``): each kind's
+    rows (:meth:`AidingFeed.aid_at`) side by side, in that order; None without aiding."""
+    if not kinds:
+        return None
+    return feeds[kinds[0]].aid_at(t) if len(kinds) == 1 else np.hstack([feeds[kind].aid_at(t) for kind in kinds])
+
+
 MAX_INTERVAL_S = 2.0
 """The longest stream interval the wait covers by itself (s), and the one it assumes until two epochs show the
 stream's own (a 0.5-Hz receiver's first interval is waited for; a fast stream shows its interval at once); a slower
@@ -254,16 +262,16 @@ minutes would set a ten-minute interval."""
 
 
 class AidingWait:
-    """IMU samples held until an aiding stream has caught up with them (the daemon's side of the track).
+    """IMU samples held until the aiding streams have caught up with them (the daemon's side of the tracks).
 
-    Aiding arrives late (its own latency, transport); a sample leaves once the track holds an epoch
-    at or after it, or once it is :attr:`wait_s` older than the newest sample (data clock, so the
-    outcome does not depend on the machine's speed), then unaided where the track has nothing. The
-    wait covers the stream's own interval, so a slow stream (a 1-Hz receiver) needs no setting.
+    Aiding arrives late (its own latency, transport); a sample leaves once, for every track, the track holds
+    an epoch at or after it or the sample is that track's :meth:`wait_s` older than the newest sample (data
+    clock, so the outcome does not depend on the machine's speed), then unaided where a track has nothing. The
+    wait covers each stream's own interval, so a slow stream (a 1-Hz receiver) needs no setting.
     """
 
-    def __init__(self, track: AidingTrack, max_wait_s: float) -> None:
-        self.track = track
+    def __init__(self, tracks: Sequence[AidingTrack], max_wait_s: float) -> None:
+        self.tracks = tuple(tracks)
         self.max_wait_s = max_wait_s
         self._rows = np.empty((256, IMU_WIDTH))   # grows to the most ever held (the wait × the IMU rate), then stays
         self._n = 0
@@ -276,33 +284,37 @@ class AidingWait:
         self._n = end
 
     def release(self, everything: bool = False) -> tuple[np.ndarray, np.ndarray]:
-        """(samples (M, :data:`IMU_WIDTH`), aiding rows (M, 1 + width): epoch number, values
-        (:meth:`AidingTrack.aid_at`)) of the samples whose wait is over (all if ``everything``)."""
+        """(samples (M, :data:`IMU_WIDTH`), aiding rows (M, Σ(1 + width)): per track the epoch number and the values
+        (:meth:`AidingTrack.aid_at`), side by side) of the samples whose wait is over (all if ``everything``)."""
         t = self._rows[:self._n, 0]
         if len(t) == 0:
-            return np.empty((0, IMU_WIDTH)), np.empty((0, 1 + self.track.width))
-        latest = self.track.latest_time
-        until = np.inf if everything else max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
-                                              t[-1] - self.wait_s + TIME_TOLERANCE_S)
+            return np.empty((0, IMU_WIDTH)), np.empty((0, sum(1 + track.width for track in self.tracks)))
+        until = np.inf
+        if not everything:
+            for track in self.tracks:
+                latest = track.latest_time
+                until = min(until, max(-np.inf if latest is None else latest + TIME_TOLERANCE_S,
+                                       t[-1] - self.wait_s(track) + TIME_TOLERANCE_S))
         n = int(np.searchsorted(t, until, side="right"))
         out = self._rows[:n].copy()
         self._rows[:self._n - n] = self._rows[n:self._n]
         self._n -= n
-        aid = self.track.aid_at(out[:, 0])
+        aid = [track.aid_at(out[:, 0]) for track in self.tracks]
         if n:
-            self.track.release(float(out[-1, 0]))
-        return out, aid
+            for track in self.tracks:
+                track.release(float(out[-1, 0]))
+        return out, aid[0] if len(aid) == 1 else np.hstack(aid)
 
     @property
     def held(self) -> int:
         return self._n
 
-    @property
-    def wait_s(self) -> float:
-        """How long (s of data) a sample waits for the epoch after it: ``max_wait_s`` for the stream's latency, plus
-        its usual interval once it has started (at most :data:`MAX_INTERVAL_S`, and that until two epochs show it).
-        Before the first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can be interpolated anyway."""
-        if self.track.latest_time is None:
+    def wait_s(self, track: AidingTrack) -> float:
+        """How long (s of data) a sample waits for ``track``'s epoch after it: ``max_wait_s`` for the stream's
+        latency, plus its usual interval once it has started (at most :data:`MAX_INTERVAL_S`, and that until two
+        epochs show it). Before the first epoch ``max_wait_s`` alone: nothing earlier than the first epoch can be
+        interpolated anyway."""
+        if track.latest_time is None:
             return self.max_wait_s
-        interval = self.track.usual_interval_s
+        interval = track.usual_interval_s
         return self.max_wait_s + min(MAX_INTERVAL_S if interval is None else interval, MAX_INTERVAL_S)

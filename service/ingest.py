@@ -70,9 +70,9 @@ class Ingest:
         self.alignment = RestartingPipeline(self._new_pipeline, report)
         ad = config.aiding
         self.tracks = {kind: AidingTrack.configured(kind, ad) for kind in self.aid_kinds}
-        # one aided mode at a time (build_pipeline refuses other combinations): the samples wait for its kind
-        self._wait = (AidingWait(self.tracks[self.pipeline.aid_kind], ad.max_wait_s) if self.pipeline.aid_width
-                      else None)
+        # the samples wait for every kind the mode takes (build_pipeline refuses combinations without one)
+        self._wait = (AidingWait([self.tracks[kind] for kind in self.pipeline.aid_kinds], ad.max_wait_s)
+                      if self.pipeline.aid_width else None)
         self.gate = gate_for(config)
         self.decoder = FrameDecoder()
         self.counters = SampleCounters()
@@ -215,12 +215,13 @@ class Ingest:
                 f"none covers the IMU's time yet (t = {self.t_last:.2f} s): a clock offset or aiding.{kind}_latency_s?")
 
     def aid_stopped_text(self) -> str | None:
-        """What an aided mode misses while its stream, once begun, has been silent for longer than the wait."""
+        """What an aided mode misses while a stream, once begun, has been silent for longer than the wait."""
         if self._wait is None or self.t_last is None or self.pipeline.awaiting_aid:
             return None
-        kind = self.pipeline.aid_kind
-        latest = self.tracks[kind].latest_time
-        if latest is None or self.t_last - latest <= self._wait.wait_s:
-            return None
-        return (f"{kind} epochs stopped after t = {latest:.2f} s: the alignment goes on without them (check the "
-                f"receiver, its topic or serial frames)")
+        for kind in self.pipeline.aid_kinds:
+            track = self.tracks[kind]
+            latest = track.latest_time
+            if latest is not None and self.t_last - latest > self._wait.wait_s(track):
+                return (f"{kind} epochs stopped after t = {latest:.2f} s: the alignment goes on without them (check "
+                        f"the receiver, its topic or serial frames)")
+        return None

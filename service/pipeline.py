@@ -27,9 +27,9 @@ from .modes import MODES
 from .modes.fixed_base import FixedBase
 from .records import result_record
 
-AID_EPOCH_COLUMN = IMU_WIDTH
-"""The layout of the samples the pipeline holds: the IMU row (t, Δθ (3), Δv (3)); an aided pipeline's then the aiding
-epoch's number and the aiding values (``aid_width``)."""
+AID_COLUMN = IMU_WIDTH
+"""The layout of the samples the pipeline holds: the IMU row (t, Δθ (3), Δv (3)); an aided pipeline's then, per aiding
+kind of its mode (``Mode.aids``, in that order), the number of the kind's newest epoch and its values."""
 
 
 def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> SensorGrade:
@@ -50,13 +50,14 @@ def _fold_until(solver: RecursiveK | CentredWahba, due: np.ndarray, dK: np.ndarr
 
 class Mode(Protocol):
     """What a mode declares (one file per mode under service/modes/, built with its pipeline): the aiding it takes
-    (``aid_kind``, ``aid_width`` values per sample; ``gyro_rate``: the gyro rate appended to them), whether a
+    (``aids``: each kind with its values per sample, in column order; ``coarse_kind``: the one the coarse stage
+    observes; ``gyro_rate``: the gyro rate appended to the values), whether a
     translating base is a disturbance and whether σ takes the noise the data show, its coarse stage (observation
     source, solver, σ model) and fine stage, what each control step does (measurements, hand-over), each output
     epoch's record, its counters and a line for the operator."""
 
-    aid_kind: str
-    aid_width: int
+    aids: tuple[tuple[str, int], ...]
+    coarse_kind: str
     checks_translation: bool
     checks_noise: bool
     gyro_rate: bool
@@ -66,7 +67,7 @@ class Mode(Protocol):
     def make_fine(self) -> object | None: ...
 
     def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
-             aid: np.ndarray | None, fresh: bool) -> None: ...
+             aid: np.ndarray | None, fresh: np.ndarray) -> None: ...
 
     def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                coarse: InertialCoarseAlignment) -> ResultRecord: ...
@@ -127,7 +128,13 @@ class AlignmentPipeline:
         self.last_disturbance: str | None = None
         self.last_notice: str | None = None   # why the alignment cannot go on as configured, for the operator
         self._disturbed_until = -np.inf   # a restarted alignment is disturbed until then
-        self._pending = np.empty((self.block_samples, AID_EPOCH_COLUMN + (1 + self.aid_width if self.aid_width else 0)))
+        # where each kind's epoch number and values sit in the samples
+        widths = [width for _, width in self.mode.aids]
+        self._epoch_columns = AID_COLUMN + np.cumsum([0, *widths[:-1]], dtype=int) + np.arange(len(widths))
+        self._value_columns = np.concatenate([np.arange(c + 1, c + 1 + w) for c, w in
+                                              zip(self._epoch_columns, widths, strict=True)] or [[]]).astype(int)
+        self._coarse_index = self.aid_kinds.index(self.mode.coarse_kind) if widths else 0
+        self._pending = np.empty((self.block_samples, AID_COLUMN + sum(1 + w for _, w in self.mode.aids)))
         self._n_pending = 0
         self._epoch_count: int | None = None
         self._emitted_count = -(2**62)
@@ -139,7 +146,7 @@ class AlignmentPipeline:
         self._apply_sigma_grade()
         self._alpha_step = np.zeros(3)
         self._t_step = t_start
-        self._step_epoch = -1.0   # the newest aiding epoch at the last control step
+        self._step_epoch = np.full(len(self.mode.aids), -1.0)   # each kind's newest epoch at the last control step
         self._restarted = t_start is not None
         d = self.config.disturbance
         self.motion = (MotionMonitor(self.coarse.source, d.velocity_threshold_mps, d.window_s, d.check_interval_s,
@@ -151,13 +158,18 @@ class AlignmentPipeline:
 
     @property
     def aid_width(self) -> int:
-        """Aiding values per sample that :meth:`process` takes (0: none)."""
-        return self.mode.aid_width
+        """Aiding values per sample that :meth:`process` takes, over all its kinds (0: none)."""
+        return sum(width for _, width in self.mode.aids)
+
+    @property
+    def aid_kinds(self) -> tuple[str, ...]:
+        """The aiding kinds (``odo``, ``gnss``, ``master``) of those values, in their column order."""
+        return tuple(kind for kind, _ in self.mode.aids)
 
     @property
     def aid_kind(self) -> str:
-        """The aiding kind of those values (``odo``, ``gnss``, ``master``): the prefix of its status counters."""
-        return self.mode.aid_kind
+        """The aiding kind the coarse stage observes: the prefix of its status counters."""
+        return self.mode.coarse_kind
 
     @property
     def checks_translation(self) -> bool:
@@ -205,14 +217,15 @@ class AlignmentPipeline:
     def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
                 aid: np.ndarray | None = None) -> list[ResultRecord]:
         """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, and for an aided pipeline the aiding at the
-        samples, aid (N, 1 + ``aid_width``): the number of the newest aiding epoch at or before the sample, then
-        the values, NaN where none (:meth:`AidingTrack.aid_at`)); return the records they complete."""
+        samples, aid (N, Σ(1 + width) over :attr:`aid_kinds`): per kind the number of its newest epoch at or before
+        the sample, then its values, NaN where none (:meth:`AidingTrack.aid_at`)); return the records they
+        complete."""
         t = np.asarray(t, dtype=float).reshape(-1)
         if len(t) == 0:
             return []
         columns = [t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))]
         if self.aid_width:
-            columns.append(np.reshape(aid, (-1, 1 + self.aid_width)))
+            columns.append(np.reshape(aid, (-1, self._pending.shape[1] - AID_COLUMN)))
         samples = np.column_stack(columns)
         if self._epoch_count is None:
             self._epoch_count = int(self._epoch_counts(np.asarray([t[0] - self.sample_period_s]))[0])
@@ -248,7 +261,8 @@ class AlignmentPipeline:
             return
         scratch = self.coarse.scratch()
         elapsed, q_b_b0, alpha = scratch.integrate(pending[:, 0], pending[:, 1:4], pending[:, 4:7])
-        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, self._aid(pending), self._aid_epoch(pending))
+        due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, *self._coarse_aid(self._aid(pending),
+                                                                                    self._aid_epoch(pending)))
         folded = 0
         for j in new:
             folded = _fold_until(scratch.solver, due, dK, trace_R, folded, j)
@@ -267,7 +281,7 @@ class AlignmentPipeline:
         t = samples[:, 0]
         elapsed, q_b_b0, alpha = self.coarse.integrate(t, samples[:, 1:4], samples[:, 4:7], M)
         aid, aid_epoch = self._aid(samples), self._aid_epoch(samples)
-        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, aid, aid_epoch)
+        due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, *self._coarse_aid(aid, aid_epoch))
         observed_s, observed_alpha = self.coarse.observed
         counts = self._epoch_counts(t)
         epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
@@ -320,12 +334,13 @@ class AlignmentPipeline:
             self.fine.loops.grade = self.sigma_grade
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
-        """The aiding values of the samples (N, ``aid_width``), None without aiding; with the mode's ``gyro_rate``
-        the gyro rate ω_ib^b (3, rad/s) appended, from the increments (1.5 Δθ_k − 0.5 Δθ_{k−1}) / T: the rate at the
-        sample's end, second-order accurate (lever arms, rotation pairs)."""
+        """The aiding values of the samples (N, ``aid_width``: every kind's, in order), None without aiding; with the
+        mode's ``gyro_rate`` the gyro rate ω_ib^b (3, rad/s) appended, from the increments
+        (1.5 Δθ_k − 0.5 Δθ_{k−1}) / T: the rate at the sample's end, second-order accurate (lever arms, rotation
+        pairs)."""
         if not self.aid_width:
             return None
-        aid = samples[:, AID_EPOCH_COLUMN + 1:]
+        aid = (samples[:, AID_COLUMN + 1:] if len(self.mode.aids) == 1 else samples[:, self._value_columns])
         if not self.mode.gyro_rate:
             return aid
         dtheta = samples[:, 1:4]
@@ -333,17 +348,23 @@ class AlignmentPipeline:
         return np.hstack((aid, (1.5 * dtheta - 0.5 * previous) / self.sample_period_s))
 
     def _aid_epoch(self, samples: np.ndarray) -> np.ndarray | None:
-        """The number (N,) of the newest aiding epoch at or before each sample (NaN: none), None without aiding."""
-        return samples[:, AID_EPOCH_COLUMN] if self.aid_width else None
+        """The number (N, kinds) of each kind's newest aiding epoch at or before each sample (NaN: none), None
+        without aiding."""
+        return samples[:, self._epoch_columns] if self.aid_width else None
+
+    def _coarse_aid(self, aid: np.ndarray | None, aid_epoch: np.ndarray | None
+                    ) -> tuple[np.ndarray | None, np.ndarray | None]:
+        """What the coarse stage observes of the aiding: every value (with the gyro rate), and the epoch numbers of
+        its kind (one observation per epoch of that kind)."""
+        return aid, None if aid_epoch is None else aid_epoch[:, self._coarse_index]
 
     def _control_step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray,
-                      aid: np.ndarray | None, aid_epoch: float | None) -> None:
+                      aid: np.ndarray | None, aid_epoch: np.ndarray | None) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
         self._alpha_step, self._t_step = alpha, t_end
         # one Kalman update per aiding epoch: a slower aid interpolated over several steps is one measurement
-        fresh = aid_epoch is not None and aid_epoch > self._step_epoch
-        if fresh:
-            self._step_epoch = aid_epoch
+        fresh = np.zeros(len(self.mode.aids), bool) if aid_epoch is None else aid_epoch > self._step_epoch
+        self._step_epoch = np.where(fresh, aid_epoch, self._step_epoch)
         self.mode.step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
         if self.motion is not None and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + self.config.disturbance.check_interval_s

@@ -310,10 +310,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--period", type=float, metavar="S", help="output period (default 1 s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--aid", action="append", metavar="KIND=FILE",
-                   help="an aiding log (pinned format, same time base): odo=ODO.csv selects in-motion alignment "
-                   "with odometer/DVL body velocity (multistage coarse window, then a Kalman stage), gnss=GNSS.csv "
-                   "in-flight alignment with GNSS fixes (antenna lever arm from the log's lever_*_m keys); "
-                   "one kind at a time for now")
+                   help="an aiding log (pinned format, same time base); the kinds given select the mode: "
+                   "odo=ODO.csv in-motion alignment with odometer/DVL body velocity (multistage coarse window, then "
+                   "a Kalman stage), gnss=GNSS.csv in-flight alignment with GNSS fixes (antenna lever arm from the "
+                   "log's lever_*_m keys), both together a land vehicle with both sensors, master=MASTER.csv "
+                   "transfer alignment against a master INS; repeat --aid for each log")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_replay)
 
@@ -372,9 +373,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--record", metavar="CSV", help="record the decoded input as an IMU log (owner-only file)")
     p.add_argument("--period", type=float, metavar="S", help="attitude output period (default 1 s)")
     p.add_argument("--aid", action="append", metavar="KIND",
-                   help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames; aiding.inputs): "
-                   "odo selects in-motion alignment with odometer/DVL body velocity, gnss in-flight alignment with "
-                   "GNSS fixes (antenna lever arm aiding.gnss_lever_m); one kind at a time for now")
+                   help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames; aiding.inputs); "
+                   "the kinds taken select the mode: odo in-motion alignment with odometer/DVL body velocity, gnss "
+                   "in-flight alignment with GNSS fixes (antenna lever arm aiding.gnss_lever_m), odo and gnss "
+                   "together a land vehicle with both, master transfer alignment against a master INS")
     _add_alignment_options(p)
     _add_zenoh_options(p)
     p.set_defaults(func=cmd_serve)
@@ -391,9 +393,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--port", metavar="PATH", help="write to this serial device instead of a new pty")
     p.add_argument("--start-delay", type=NON_NEGATIVE, default=3.0, metavar="S",
                    help="wait before playing (default 3 s)")
-    p.add_argument("--aid", action="store_true", help="also play the scenario's aiding sensor (odometer of seed003-*, "
-                   "GNSS of seed004, master INS of seed002) as serial aiding frames among the IMU frames; serve "
-                   "with the [aiding] table printed")
+    p.add_argument("--aid", action="store_true", help="also play the scenario's aiding sensors (odometer of "
+                   "seed003-*, GNSS of seed004, both of seed003-odo-gnss, master INS of seed002) as serial aiding "
+                   "frames among the IMU frames; serve with the [aiding] table printed")
     p.add_argument("--aid-late", type=NON_NEGATIVE, default=0.2, metavar="S",
                    help="how far behind the IMU frames the aiding epochs come (s of data, default 0.2)")
     p.set_defaults(func=cmd_bench)

@@ -10,7 +10,7 @@ import time
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.service.align.conventions import DEG
 
-from .sim.aiding import scenario_aiding
+from .sim.aiding import daemon_aiding, scenario_aids
 from .sim.imu import simulate
 from .sim.scenarios import seed_run
 from .virtual_imu import AidingPlayback, FramePlayer, PtyPair
@@ -30,16 +30,19 @@ def run_bench(log: str | None, scenario: str, seed: int, duration_s: float | Non
         chunks = ((c.t, c.dtheta, c.dv) for c in simulate(s.motion, s.site, s.errors, s.rate_hz, duration, seed))
         what = f"{scenario} seed {seed} (site lat {s.site.lat / DEG:.3f}°, "\
                f"{s.rate_hz:g} Hz: serve with --config giving [site] and [imu] to match)"
-    aiding = None
+    aiding = []
     if aid:
-        sensor = None if log else scenario_aiding(s, seed)
-        if sensor is None:
+        sensors = [] if log else scenario_aids(s, seed)
+        if not sensors:
             print(f"--aid: {log or scenario} has no simulated aiding sensor (seed003-*, seed004, seed002 "
                   "have)", file=sys.stderr)
             return 2
-        aiding = AidingPlayback(sensor.kind, sensor.epochs[sensor.epochs[:, 0] <= duration], aid_late_s)
-        table = ", ".join(f"{k} = {json.dumps(v)}" for k, v in sensor.daemon_config().items())
-        what += f", with its {sensor.kind} epochs {aid_late_s:g} s late (serve --aid {sensor.kind}, [aiding] {table})"
+        aiding = [AidingPlayback(sensor.kind, sensor.epochs[sensor.epochs[:, 0] <= duration], aid_late_s)
+                  for sensor in sensors]
+        table = ", ".join(f"{k} = {json.dumps(v)}" for k, v in daemon_aiding(sensors).items())
+        kinds = " ".join(f"--aid {sensor.kind}" for sensor in sensors)
+        what += (f", with its {' and '.join(sensor.kind for sensor in sensors)} epochs {aid_late_s:g} s late "
+                 f"(serve {kinds}, [aiding] {table})")
     pty = None
     if port:
         fd = os.open(port, os.O_WRONLY | os.O_NOCTTY | os.O_NONBLOCK)

@@ -23,7 +23,7 @@ from sinsalign.service.serial_port import SerialPort
 from sinsalign.service.zenoh_session import open_session
 
 from .evaluate import run_limit_deg
-from .sim.aiding import scenario_aiding
+from .sim.aiding import daemon_aiding, scenario_aids
 from .sim.imu import simulate
 from .sim.scenarios import daemon_sections, seed_run
 from .virtual_imu import AidingPlayback, FramePlayer, PtyPair
@@ -45,7 +45,7 @@ class DemoResult:
     converged: np.ndarray
     limit_deg: np.ndarray         # (3,)
     counters: dict[str, int]
-    aiding: str | None = None     # the aiding kind played (the bias limit is then not the floor: no limit shown)
+    aiding: tuple[str, ...] = ()  # the aiding kinds played (the bias limit is then not the floor: no limit shown)
 
 
 AIDING_LATE_S = 0.2
@@ -57,14 +57,14 @@ def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: b
     scenario = seed_run(scenario_name, seed, duration_s)
     out_dir.mkdir(parents=True, exist_ok=True)
     port = free_loopback_port()
-    aid = scenario_aiding(scenario, seed)
-    aiding = None if aid is None else AidingPlayback(aid.kind, aid.epochs, AIDING_LATE_S)
+    aids = scenario_aids(scenario, seed)
+    aiding = [AidingPlayback(aid.kind, aid.epochs, AIDING_LATE_S) for aid in aids]
     config = config_from_mapping({
         **daemon_sections(scenario),
         "zenoh": {"listen": [f"tcp/127.0.0.1:{port}"], "unit": "demo"},
         "daemon": {"record_path": str(out_dir / "recorded.csv")},
         # the samples wait for their aiding: allow for the latency at any playing speed
-        **({} if aid is None else {"aiding": {**aid.daemon_config(), "max_wait_s": 10.0}})})
+        **({"aiding": {**daemon_aiding(aids), "max_wait_s": 10.0}} if aids else {})})
     pty = PtyPair()
     watcher_config = replace(config.zenoh, listen=(), connect=(f"tcp/127.0.0.1:{port}",))
     with open_session(config.zenoh) as daemon_session, open_session(watcher_config) as watch_session:
@@ -109,12 +109,12 @@ def run_demo(scenario_name: str, seed: int, speed: float, out_dir: Path, show: b
     phi = misalignment(dcm_from_quat(np.array([m["q"] for m in received])), truth_C[index]) / DEG
     return DemoResult(t, [m["phase"] for m in received], phi, np.array([m["heading_sigma_deg"] for m in received]),
                       np.array([m["converged"] for m in received]), run_limit_deg(scenario, truth_t),
-                      status["counters"], None if aid is None else aid.kind)
+                      status["counters"], tuple(aid.kind for aid in aids))
 
 
 def summary(result: DemoResult, scenario_name: str) -> str:
     # an aided mode observes the biases the bias limit assumes unknown: its error is shown against the truth alone
-    fixed = result.aiding is None
+    fixed = not result.aiding
     lines = ["   t (s)  phase    error φ_U (°)" + ("  error − limit (°)" if fixed else "") + "   σ (°)   converged"]
     marks = [m for m in (10, 20, 30, 60, 100, 150, 200, 300, 450, 600) if m in set(np.round(result.t, 6))]
     for mark in marks:
@@ -126,8 +126,9 @@ def summary(result: DemoResult, scenario_name: str) -> str:
     odd = ", ".join(f"{k} {v}" for k, v in messages.faults(c).items())
     screened = ", ".join(f"{k} {c[k]}" for k in sorted(messages.SCREENED & c.keys()) if c[k])
     about = (f"physical limit heading {result.limit_deg[2]:+.4f}°, level E {result.limit_deg[0]:+.4f}° N "
-             f"{result.limit_deg[1]:+.4f}°" if fixed else f"aided by {result.aiding} (serial aiding frames, "
-             f"{AIDING_LATE_S:g} s late); {c.get(f'{result.aiding}_epochs', 0)} epochs taken")
+             f"{result.limit_deg[1]:+.4f}°" if fixed else f"aided by {' and '.join(result.aiding)} (serial aiding "
+             f"frames, {AIDING_LATE_S:g} s late); " +
+             ", ".join(f"{c.get(f'{kind}_epochs', 0)} {kind} epochs taken" for kind in result.aiding))
     lines += ["", f"{scenario_name}: {about}",
               f"frames received {c.get('frames', 0)}, used {c.get('samples_used', 0)}; "
               f"drops and faults: {odd or 'none'}" + (f"; screened out by the gates: {screened}" if screened else "")]

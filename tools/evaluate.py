@@ -17,13 +17,13 @@ from typing import Any
 
 import numpy as np
 from rich.progress import Progress
-from sinsalign.service.aiding import AidingFeed, AidingTrack
+from sinsalign.service.aiding import AidingFeed, AidingTrack, aid_rows
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment, quat_from_dcm, skew
 from sinsalign.service.align.sensor_model import physical_limit
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline, build_pipeline
 
-from .sim.aiding import scenario_aiding, with_faults
+from .sim.aiding import scenario_aids, with_faults
 from .sim.imu import ERROR_SOURCES, simulate
 from .sim.parked import DrivenMotion
 from .sim.scenarios import Scenario, get_scenario
@@ -71,14 +71,15 @@ def run_limit_deg(scenario: Scenario, t: np.ndarray) -> np.ndarray:
 
 
 def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: Sequence[float] | None = None,
-             live: bool = False, aid_faults: dict | None = None, gnss_lever_stated: bool = True) -> RunResult:
+             live: bool = False, aid_faults: dict[str, dict] | None = None, gnss_lever_stated: bool = True,
+             kinds: Sequence[str] | None = None) -> RunResult:
     """Simulate one seed in memory and run the pipeline over it (the scenario's datasheet grade, as its log states).
 
     ``initial_error_deg`` (φ_E, φ_N, φ_U) starts the compass loops alone from the truth at t = 0 turned by that
     misalignment, without the coarse stage (seed 001's compass-only runs). A scenario with an odometer or GNSS
-    runs the aided pipeline, its readings going through the same aiding track as a log's; ``aid_faults`` are
-    keyword arguments of :func:`with_odometer_faults`, :func:`with_gnss_faults` or :func:`with_master_faults`,
-    whichever aid it has.
+    runs the aided pipeline, its readings going through the same aiding tracks as a log's; ``kinds`` keeps only those
+    of its aiding sensors (None: all); ``aid_faults`` gives per kind the keyword arguments of
+    :func:`with_odometer_faults`, :func:`with_gnss_faults` or :func:`with_master_faults`.
     ``gnss_lever_stated``: the GNSS log states the antenna's lever arm (it overrides ``aiding.gnss_lever_m``);
     False leaves the configuration's (zero by default: the lever arm ignored).
     """
@@ -87,26 +88,30 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     if initial_error_deg is not None:
         phi = np.asarray(initial_error_deg, dtype=float) * DEG
         initial = quat_from_dcm((np.eye(3) - skew(phi)) @ scenario.motion.attitude(np.array([0.0]))[0])
-    feed, aid = None, scenario_aiding(scenario, seed)
-    if aid is None:
+    aids = [aid for aid in scenario_aids(scenario, seed) if kinds is None or aid.kind in kinds]
+    if not aids:
         pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.stated_datasheet(), live=live,
                                      initial_q_b_n=initial)
-    else:
-        kind = aid.kind
-        epochs = with_faults(kind, aid.epochs, seed, **(aid_faults or {}))
+    for aid in aids:
         # the sensor as its log states it (its noise; a GNSS antenna's lever arm, unless that is left unstated)
         stated = {k: v for k, v in aid.stated().items() if gnss_lever_stated or k != "gnss_lever_m"}
         config = replace(config, aiding=replace(config.aiding, **stated))
-        # the aided pipeline, its readings through the same aiding track as a log's
-        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), [kind], live)
-        track = AidingTrack.configured(kind, config.aiding)
-        feed = AidingFeed(track, iter([epochs]))
+    # the aided pipeline, its readings through the same aiding tracks as a log's
+    faults = aid_faults or {}
+    feeds = {aid.kind: AidingFeed(AidingTrack.configured(aid.kind, config.aiding),
+                                  iter([with_faults(aid.kind, aid.epochs, seed, **faults.get(aid.kind, {}))]))
+             for aid in aids}
+    if aids:
+        pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), feeds, live)
     records = []
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                           seed):
-        aid = None if feed is None else feed.aid_at(chunk.t)
-        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, aid)
-    counters = None if feed is None else {**feed.track.counters.as_dict(), **pipeline.aiding_counters()}
+        records += pipeline.process(chunk.t, chunk.dtheta, chunk.dv, aid_rows(feeds, pipeline.aid_kinds, chunk.t))
+    counters = None
+    if feeds:
+        counters = pipeline.aiding_counters()
+        for kind, feed in feeds.items():
+            counters |= feed.track.counters.as_dict(f"{kind}_")
     t = np.array([r.t for r in records])
     C_est = dcm_from_quat(np.array([r.q for r in records]))
     phi = misalignment(C_est, scenario.motion.attitude(t)) / DEG
@@ -137,14 +142,15 @@ def _run_task(args: tuple[str, int, dict, float | None, float | None, str | None
 
 def monte_carlo(scenario_name: str, seeds: Sequence[int], overrides: dict | None = None, workers: int | None = None,
                 progress: bool = True, label: str = "", initial_error_deg: Sequence[float] | None = None,
-                aid_faults: dict | None = None, duration_s: float | None = None,
+                aid_faults: dict[str, dict] | None = None, duration_s: float | None = None,
                 gnss_lever_stated: bool = True, aid_rate_hz: float | None = None,
-                error_source: str | None = None) -> list[RunResult]:
+                error_source: str | None = None, kinds: Sequence[str] | None = None) -> list[RunResult]:
     """Run every seed (in parallel processes); results in seed order. See :func:`run_once`;
     ``duration_s`` cuts the scenario short, ``aid_rate_hz`` runs its aiding sensor at another rate,
     ``error_source`` (a key of ERROR_SOURCES) keeps that one IMU error and zeroes the others (the datasheet the
     log states stays the same, so the estimator weighs the data as before)."""
-    options = {"initial_error_deg": initial_error_deg, "aid_faults": aid_faults, "gnss_lever_stated": gnss_lever_stated}
+    options = {"initial_error_deg": initial_error_deg, "aid_faults": aid_faults, "gnss_lever_stated": gnss_lever_stated,
+               "kinds": kinds}
     tasks = [(scenario_name, s, overrides or {}, duration_s, aid_rate_hz, error_source, options) for s in seeds]
     return run_parallel(_run_task, tasks, f"{scenario_name} {label}".strip(), progress, workers)
 

@@ -73,9 +73,9 @@ def seed003_table(seeds: Sequence[int], speeds: Sequence[int] = SPEEDS_MPS, prog
     for v in speeds:
         name = f"seed003-{v}"
         trad = stats_at(monte_carlo(name, seeds, TRADITIONAL, progress=progress, label="traditional",
-                                    aid_faults=aid_faults, duration_s=COARSE_AT_S), COARSE_AT_S)
+                                    aid_faults=aid_faults and {"odo": aid_faults}, duration_s=COARSE_AT_S), COARSE_AT_S)
         runs = monte_carlo(name, seeds, {}, progress=progress, label="multistage + Kalman",
-                           aid_faults=aid_faults)
+                           aid_faults=aid_faults and {"odo": aid_faults})
         multistage_runs[v] = runs
         coarse, fine, honest = stats_at(runs, COARSE_AT_S), stats_at(runs, FINE_AT_S), fine_honesty(runs)
         lines.append(f"| {v} m/s | traditional V^b | {trad.mae:.3f} | {trad.mean:+.3f} | {trad.std:.3f} | "

@@ -112,7 +112,7 @@ def seed004_table(seeds: Sequence[int], progress: bool = True,
     for label, formula, lever_stated, faults in VARIANTS:
         try:
             runs = monte_carlo(SCENARIO, seeds, {"aiding": {"gnss_formula": formula}}, progress=progress,
-                               label=label, aid_faults=faults, duration_s=duration_s,
+                               label=label, aid_faults=faults and {"gnss": faults}, duration_s=duration_s,
                                gnss_lever_stated=lever_stated)
         except (ConfigError, NotImplementedError) as e:
             lines.append(f"| {label} | not available: {e} |" + " |" * (len(CHECK_TIMES_S) + 3))

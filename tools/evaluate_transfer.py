@@ -85,7 +85,8 @@ def seed002_table(seeds: Sequence[int], progress: bool = True) -> tuple[str, dic
              "in 2σ from 10 s (heading) | converged > 3σ (any axis, any time) |", "|---|---|---|---|---|---|---|"]
     all_runs: dict[str, list[RunResult]] = {}
     for label, overrides, faults in VARIANTS:
-        runs = monte_carlo(SCENARIO, seeds, overrides, progress=progress, label=label, aid_faults=faults)
+        runs = monte_carlo(SCENARIO, seeds, overrides, progress=progress, label=label,
+                           aid_faults=faults and {"master": faults})
         all_runs[label] = runs
         honest = fine_honesty(runs, HONEST_FROM_S)
         beyond = converged_beyond_3sigma_any_axis(runs)

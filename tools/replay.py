@@ -11,7 +11,7 @@ from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.protocol.results import ResultRecord
-from sinsalign.service.aiding import AidingFeed, AidingTrack
+from sinsalign.service.aiding import AidingFeed, AidingTrack, aid_rows
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
 from sinsalign.service.config import Config, ConfigError, config_from_mapping
@@ -78,7 +78,6 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     # a daemon's recording marks where it started over; a failed step starts over here as it does there
     alignment = RestartingPipeline(lambda: build_pipeline(config, site, h.rate_hz, h.datasheet(), feeds),
                                    lambda text: print(f"replay: {text}", file=sys.stderr))
-    aid_feed = next(iter(feeds.values()), None)   # one aided mode at a time: build_pipeline refused the rest
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
     samples = records = 0
@@ -95,7 +94,7 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
                     alignment.restart()
                 if len(t) == 0:
                     continue
-                aid = None if aid_feed is None else aid_feed.aid_at(t)
+                aid = aid_rows(feeds, alignment.pipeline.aid_kinds, t)
                 for record in alignment.process(t, dtheta, dv, aid)[0]:
                     out.write(record.to_json() + "\n")
                     records += 1

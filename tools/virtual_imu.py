@@ -19,7 +19,7 @@ import os
 import select
 import time
 import tty
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -87,13 +87,12 @@ class AidingPlayback:
 
 
 def encode_samples(t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int,
-                   aiding: AidingPlayback | None = None) -> bytes:
+                   aiding: Sequence[AidingPlayback] = ()) -> bytes:
     """IMU frames (sequence numbers from ``seq``) of samples t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, each
-    preceded by the aiding frames due before it."""
+    preceded by the aiding frames due before it (of every stream in ``aiding``)."""
     frames = []
     for i in range(len(t)):
-        if aiding is not None:
-            frames.append(aiding.due(float(t[i])))
+        frames += [stream.due(float(t[i])) for stream in aiding]
         frames.append(encode_imu(seq + i, float(t[i]), dtheta[i], dv[i]))
     return b"".join(frames)
 
@@ -104,7 +103,7 @@ class FramePlayer:
 
     fd: int
     speed: float = 1.0
-    aiding: AidingPlayback | None = None
+    aiding: Sequence[AidingPlayback] = ()
     seq: int = 0
     frames_written: int = 0
     _origin: tuple[float, float] | None = None   # (data time, wall time) of the first frame
@@ -134,5 +133,5 @@ class FramePlayer:
         aiding epochs still due (those less than ``late_s`` before the end)."""
         for t, dtheta, dv in chunks:
             self.play(t, dtheta, dv, stop)
-        if self.aiding is not None:
-            write_all(self.fd, self.aiding.rest())
+        for stream in self.aiding:
+            write_all(self.fd, stream.rest())

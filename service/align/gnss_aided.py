@@ -84,8 +84,9 @@ class RunningIntegral:
 class GnssSource:
     """What the GNSS sources share: the n0 frame of the first fix, C_{n(t)}^{n0} of the fixes, the lever
     arm, the inertial-position terms of the fixes, and the pairs taken less their first value. Aid
-    columns per epoch: the six GNSS values (:data:`GNSS_COLUMNS`) then ω_ib^b (3, rad/s). ``lever_b``:
-    IMU to antenna, body axes (m). ``vel_std_mps``, ``pos_std_m``: the fixes' white noise per axis."""
+    columns per epoch: the six GNSS values (:data:`GNSS_COLUMNS`) first, ω_ib^b (3, rad/s) from ``rate_column``
+    (right after them unless another aid's values come between). ``lever_b``: IMU to antenna, body axes (m).
+    ``vel_std_mps``, ``pos_std_m``: the fixes' white noise per axis."""
 
     aid_width = GNSS_COLUMNS + 3
     sigma_factor = 1.0
@@ -94,8 +95,9 @@ class GnssSource:
     """Whether the pairs carry a nuisance term c₁ s_k besides the constant (:meth:`drift_regressor`)."""
 
     def __init__(self, site: Site, lever_b: np.ndarray | None = None, vel_std_mps: float = 0.1,
-                 pos_std_m: float = 2.0) -> None:
+                 pos_std_m: float = 2.0, rate_column: int = GNSS_COLUMNS) -> None:
         self.site = site
+        self.rate = slice(rate_column, rate_column + 3)
         self.lever_b = np.zeros(3) if lever_b is None else np.asarray(lever_b, dtype=float)
         self.vel_std_mps = vel_std_mps
         self.pos_std_m = pos_std_m
@@ -144,7 +146,7 @@ class GnssSource:
     def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
                 aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """(b (M, 3) in b0 axes, r (M, 3) in n0 axes) at M observation epochs ``elapsed_s`` (s since the start),
-        from α (M, 3) m/s, C_b^{b0} as quaternions (M, 4) and the aid columns (M, 9), each less its first value."""
+        from α (M, 3) m/s, C_b^{b0} as quaternions (M, 4) and the aid columns (M, ≥ 9), each less its first value."""
         if aid is None:
             raise ValueError("a GNSS source needs the fixes at every observation")
         if len(elapsed_s) == 0:
@@ -217,7 +219,7 @@ class GnssVelocitySource(GnssSource):
                C_n_n0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         V_n0 = (C_n_n0 @ aid[:, 3:6, None])[..., 0]
         J, gravity = self._inertial_terms(elapsed_s, aid, C_n_n0)
-        lever_velocity = (C_b_b0 @ cross(aid[:, 6:9], self.lever_b)[..., None])[..., 0]
+        lever_velocity = (C_b_b0 @ cross(aid[:, self.rate], self.lever_b)[..., None])[..., 0]
         return alpha_b0 + lever_velocity, V_n0 + cross(self._omega_ie_n0, J) + gravity
 
     def observation_variance(self, elapsed_s: np.ndarray) -> np.ndarray:
@@ -239,8 +241,8 @@ class GnssPositionSource(GnssSource):
     _integral_names = ("dR", "g_up", "J", "g_up_twice", "alpha")
 
     def __init__(self, site: Site, lever_b: np.ndarray | None = None, vel_std_mps: float = 0.1,
-                 pos_std_m: float = 2.0) -> None:
-        super().__init__(site, lever_b, vel_std_mps, pos_std_m)
+                 pos_std_m: float = 2.0, rate_column: int = GNSS_COLUMNS) -> None:
+        super().__init__(site, lever_b, vel_std_mps, pos_std_m, rate_column)
         self._alpha_integral = (np.zeros(0), np.zeros((0, 3)))   # (elapsed, ∫α dτ) at the latest samples
 
     def accumulate(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray) -> None:
@@ -269,18 +271,57 @@ class GnssPositionSource(GnssSource):
             return (self.pos_std_m / self.span_s(elapsed_s)) ** 2 + self.vel_std_mps**2
 
 
+class BodyVelocityPairs:
+    """A second pair per fix from an odometer (or DVL) beside the receiver: one velocity seen in both frames.
+
+    The IMU's velocity is C_b^n (V_odo^b − ω_ib^b × l_odo^b) = V_ant^n − C_b^n (ω_ib^b × l_ant^b) (the Earth
+    rate's part of ω_eb is 1e-4 m/s at these lever arms), and C_b^n = C_{n0}^{n} C_b0^n0 C_b^{b0}, so
+    C_b0^n0 b = r with b = C_b^{b0} (V_odo^b + ω_ib^b × (l_ant^b − l_odo^b)) and r = C_n^{n0} V_ant^n: no constant,
+    no drift (the fit takes them with z = 0). Their noise per axis is the fix's and the odometer's together. At
+    20 m/s a pair with 0.1-m/s noise sees the heading to 0.3°, against the VIF pairs' accelerations that a
+    straight road lacks. An odometer not aligned with the IMU's axes turns the heading by its misalignment.
+
+    odo_column : where V_odo^b (3, body axes, m/s) starts among the aid columns (the rate's are the source's);
+    odo_lever_b : the odometer's point from the IMU (body axes, m); odo_std_mps : its noise per axis.
+    """
+
+    def __init__(self, odo_column: int, odo_lever_b: np.ndarray, odo_std_mps: float) -> None:
+        self.odo = slice(odo_column, odo_column + 3)
+        self.odo_lever_b = np.asarray(odo_lever_b, dtype=float)
+        self.odo_std_mps = odo_std_mps
+
+    def vectors(self, source: GnssSource, elapsed_s: np.ndarray, q_b_b0: np.ndarray, aid: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(b (M, 3) b0 axes, r (M, 3) n0 axes, μ (M,) m²/s² per axis) at M observation epochs with their aid
+        columns (after ``source`` has taken its own pairs there)."""
+        lever = cross(aid[:, source.rate], source.lever_b - self.odo_lever_b)
+        b = (dcm_from_quat(q_b_b0) @ (aid[:, self.odo] + lever)[..., None])[..., 0]
+        C_n_n0 = source.C_n_n0_at(elapsed_s, aid[:, 0] * DEG, aid[:, 1] * DEG)
+        r = (C_n_n0 @ aid[:, 3:6, None])[..., 0]
+        return b, r, np.full(len(b), source.vel_std_mps**2 + self.odo_std_mps**2)
+
+
 class GnssCoarseAlignment(InertialCoarseAlignment):
     """The inertial-frame coarse stage with σ from the centred fit's own covariance (manoeuvres, not the
     Earth's rotation, carry the heading here, so the fixed-site σ model does not apply) and the pairs
-    weighted by the source's stated noise."""
+    weighted by the source's stated noise. With :attr:`body_velocity` each fix gives a second pair, folded after
+    its VIF or PIF pair (``n_obs`` counts both)."""
 
     source: GnssSource
+    body_velocity: BodyVelocityPairs | None = None
 
     def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
                 aid_epoch: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         self.source.accumulate(elapsed_s, alpha)
         self.source.follow(elapsed_s, aid)
-        return super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
+        due, outer, pairs = super().observe(elapsed_s, q_b_b0, alpha, aid, aid_epoch)
+        if self.body_velocity is None or len(due) == 0:
+            return due, outer, pairs
+        b, r, mu = self.body_velocity.vectors(self.source, elapsed_s[due], q_b_b0[due], aid[due])
+        outer_v, pairs_v = self.solver.prepare(b, r, mu, np.zeros(len(b)), offset=False)
+        # each epoch's two pairs one after the other: the fold up to a sample takes both or neither
+        return (np.repeat(due, 2), np.stack((outer, outer_v), axis=1).reshape(-1, 3, 3),
+                np.stack((pairs, pairs_v), axis=1).reshape(-1, pairs.shape[1]))
 
     def prepare_pairs(self, elapsed_s: np.ndarray, b: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The pairs weighted by the source's stated noise, with its drift regressor if it has one."""

@@ -203,13 +203,16 @@ class CentredWahba:
         self.rho = 1.0
         self.trace_P = float("nan")
 
-    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray, s: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray]:
+    def prepare(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray, s: np.ndarray | None = None,
+                offset: bool = True) -> tuple[np.ndarray, np.ndarray]:
         """(w b rᵀ (M, 3, 3), [b, r, w, z] (M, 7 + m)) of M pairs, for :meth:`fold`; ``s`` (M,) the drift
-        regressor (with ``drift``)."""
+        regressor (with ``drift``). ``offset`` False: pairs that carry neither the constant nor the drift
+        (b = A r exactly: z = 0), fitted together with those that do."""
         w = 1.0 / np.asarray(mu, dtype=float) if self.weighted else np.ones(len(b))
         m = len(self.S_zz)
         z = [np.ones(len(b))] * min(m, 1) + ([np.asarray(s, dtype=float)] if m == 2 else [])
+        if not offset:
+            z = [np.zeros(len(b))] * m
         return w[:, None, None] * b[:, :, None] * r[:, None, :], np.column_stack((b, r, w, *z))
 
     def fold(self, outer: np.ndarray, pairs: np.ndarray) -> None:

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from .fixed_base import FixedBase
 from .gnss import Gnss
 from .odometer import Odometer
+from .odometer_gnss import OdometerGnss
 from .transfer import Transfer
 
 if TYPE_CHECKING:
@@ -20,5 +21,5 @@ if TYPE_CHECKING:
 
 MODES: dict[frozenset[str], Callable[[AlignmentPipeline], Mode]] = {
     frozenset(): FixedBase, frozenset({"odo"}): Odometer, frozenset({"gnss"}): Gnss,
-    frozenset({"master"}): Transfer}
+    frozenset({"master"}): Transfer, frozenset({"odo", "gnss"}): OdometerGnss}
 """Which mode the aids given select (``replay --aid``, the daemon's ``aid/<kind>`` inputs)."""

@@ -34,8 +34,8 @@ INITIAL_HEADING_SIGMA_DEG = 1.5
 class FixedBase:
     """The fixed-base mode of ``pipeline`` (its configuration, grade, site and estimators)."""
 
-    aid_kind = ""
-    aid_width = 0
+    aids: tuple[tuple[str, int], ...] = ()
+    coarse_kind = ""
     checks_translation = True
     checks_noise = True
     gyro_rate = False
@@ -72,7 +72,7 @@ class FixedBase:
         return {}
 
     def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
-             aid: np.ndarray | None, fresh: bool) -> None:
+             aid: np.ndarray | None, fresh: np.ndarray) -> None:
         """One control step: the loops take Δα (3,) m/s over ``dt_s`` ending at ``t_end``; before they run, the
         hand-over from the coarse stage."""
         p = self.p

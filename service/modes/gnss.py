@@ -10,14 +10,27 @@ with σ growing. No translation check: this base flies.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import DEG, dcm_from_quat
 from ..align.gnss_aided import GNSS_COLUMNS, GnssCoarseAlignment, GnssPositionSource, GnssVelocitySource
-from ..align.kalman import ErrorStateFilter, GnssPosition, GnssVelocity, antenna_lever_velocity, enu_to_geodetic_step
+from ..align.kalman import (
+    ErrorStateFilter,
+    GnssPosition,
+    GnssVelocity,
+    Measurement,
+    antenna_lever_velocity,
+    enu_to_geodetic_step,
+)
 from ..align.solvers import CentredWahba
 from .kalman import KalmanMode
+
+if TYPE_CHECKING:
+    from ..config import AidingConfig
+    from ..pipeline import AlignmentPipeline
 
 PAIR_GATE_CHI2 = 36.0
 """The coarse stage's screen of each pair: |e|²/μ over the fit's residual variance (6σ in 3-D, a false alarm
@@ -27,60 +40,83 @@ HANDOVER_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n and position from one fix: their σ is this many times the fix's."""
 
 
+def gnss_coarse(p: AlignmentPipeline, rate_column: int = GNSS_COLUMNS) -> GnssCoarseAlignment:
+    """The coarse stage on the fixes (VIF or PIF source, the centred fit screening each pair); the gyro rate from
+    aid column ``rate_column``."""
+    a, ad = p.config.alignment, p.config.aiding
+    source_class = GnssPositionSource if ad.gnss_formula == "pif" else GnssVelocitySource
+    source = source_class(p.site, np.array(ad.gnss_lever_m), ad.gnss_vel_std_mps, ad.gnss_pos_std_m, rate_column)
+    # the pairs are screened against the fit (a glitch of the fixes would otherwise enter it for good)
+    solver = CentredWahba(weighted=True, gate_chi2=PAIR_GATE_CHI2, drift=source.drift)
+    return GnssCoarseAlignment(source, p.grade, solver, p.sample_period_s, a.obs_interval_s,
+                               a.disturbance_velocity_mps)
+
+
+def gnss_filter_measurements(ad: AidingConfig) -> list[Measurement]:
+    """The Kalman stage's GNSS velocity and position measurements, both through the antenna's lever arm."""
+    lever = np.array(ad.gnss_lever_m)
+    return [GnssVelocity(ad.gnss_vel_std_mps, lever), GnssPosition(ad.gnss_pos_std_m, lever)]
+
+
+def gnss_measurements(fix: np.ndarray, gyro_rate: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
+    """One fix (lat_deg, lon_deg, h_m, V^n (3)) as the filter's measurements: its velocity with the gyro rate
+    (rad/s, for the lever arm) and its position in rad / m."""
+    return [("gnss", "gnss_vel", np.r_[fix[3:6], gyro_rate]), ("gnss", "gnss_pos", np.r_[fix[:2] * DEG, fix[2]])]
+
+
+def gnss_handover(p: AlignmentPipeline, mode: KalmanMode, t_end: float, elapsed_s: float, q_b_b0: np.ndarray,
+                  fix: np.ndarray, gyro_rate: np.ndarray) -> None:
+    """Start ``p``'s filter from the coarse solution and one fix (and the gyro rate, rad/s) once the alignment has
+    run ``aiding.gnss_handover_s`` and the coarse heading σ is within the mode's limit."""
+    ad = p.config.aiding
+    if not np.isfinite(fix).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:
+        return
+    solution = mode.handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
+                                                          "(manoeuvre)"))
+    if solution is None:
+        return
+    C_b_n = dcm_from_quat(solution.q_b_n)
+    antenna = np.r_[fix[:2] * DEG, fix[2]]
+    lever = np.array(ad.gnss_lever_m)
+    V_n = fix[3:6] - antenna_lever_velocity(C_b_n, gyro_rate, antenna[0], lever)
+    position = antenna - enu_to_geodetic_step(C_b_n @ lever, antenna)
+    p.fine.start(C_b_n, dcm_from_quat(q_b_b0), V_n, position, solution.level_sigma_deg * DEG,
+                 solution.heading_sigma_deg * DEG, HANDOVER_SIGMA_FACTOR * ad.gnss_vel_std_mps,
+                 velocity_from_attitude=False, position_sigma_m=HANDOVER_SIGMA_FACTOR * ad.gnss_pos_std_m)
+
+
+def gnss_coarse_counters(p: AlignmentPipeline) -> dict[str, int]:
+    """The coarse pairs screened out (glitches) and screens reopened after a run of rejections."""
+    return {"gnss_coarse_rejected": p.coarse.solver.rejected, "gnss_coarse_reopened": p.coarse.solver.reopened}
+
+
 class Gnss(KalmanMode):
-    aid_width = GNSS_COLUMNS
-    aid_kind = "gnss"
+    aids = (("gnss", GNSS_COLUMNS),)
+    coarse_kind = "gnss"
     gyro_rate = True
 
     def make_coarse(self) -> InertialCoarseAlignment:
-        p = self.p
-        a, ad = p.config.alignment, p.config.aiding
-        source_class = GnssPositionSource if ad.gnss_formula == "pif" else GnssVelocitySource
-        source = source_class(p.site, np.array(ad.gnss_lever_m), ad.gnss_vel_std_mps, ad.gnss_pos_std_m)
-        # the pairs are screened against the fit (a glitch of the fixes would otherwise enter it for good)
-        solver = CentredWahba(weighted=True, gate_chi2=PAIR_GATE_CHI2, drift=source.drift)
-        return GnssCoarseAlignment(source, p.grade, solver, p.sample_period_s, a.obs_interval_s,
-                                   a.disturbance_velocity_mps)
+        return gnss_coarse(self.p)
 
     def make_fine(self) -> ErrorStateFilter | None:
         p = self.p
         if not p.config.fine.enabled:
             return None
-        ad = p.config.aiding
-        lever = np.array(ad.gnss_lever_m)
-        return ErrorStateFilter(p.grade, [GnssVelocity(ad.gnss_vel_std_mps, lever),
-                                          GnssPosition(ad.gnss_pos_std_m, lever)], ad.gate_chi2)
+        return ErrorStateFilter(p.grade, gnss_filter_measurements(p.config.aiding), p.config.aiding.gate_chi2)
 
-    def measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The fix's velocity with the gyro rate (lever arm), and its position in rad / m."""
-        return [("gnss_vel", aid[3:9]), ("gnss_pos", np.r_[aid[:2] * DEG, aid[2]])]
+        return gnss_measurements(aid[:GNSS_COLUMNS], aid[GNSS_COLUMNS:])
 
     def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
-             aid: np.ndarray | None, fresh: bool) -> None:
+             aid: np.ndarray | None, fresh: np.ndarray) -> None:
         """The Kalman stage's step once it runs; before it, the hand-over from the coarse stage. ``aid``: the fix at
         the step's end, then the gyro rate (3, rad/s)."""
         p = self.p
-        C_b_b0 = dcm_from_quat(q_b_b0)
-        if p.fine is None or self.kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):
+        if p.fine is None or self.kalman_step(dalpha, dt_s, dcm_from_quat(q_b_b0), aid, fresh):
             return
-        ad = p.config.aiding
-        if not np.isfinite(aid).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:
-            return
-        solution = self.handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
-                                                                 "(manoeuvre)"))
-        if solution is None:
-            return
-        C_b_n = dcm_from_quat(solution.q_b_n)
-        antenna = np.r_[aid[:2] * DEG, aid[2]]
-        lever = np.array(ad.gnss_lever_m)
-        V_n = aid[3:6] - antenna_lever_velocity(C_b_n, aid[6:9], antenna[0], lever)
-        position = antenna - enu_to_geodetic_step(C_b_n @ lever, antenna)
-        p.fine.start(C_b_n, C_b_b0, V_n, position, solution.level_sigma_deg * DEG,
-                     solution.heading_sigma_deg * DEG, HANDOVER_SIGMA_FACTOR * ad.gnss_vel_std_mps,
-                     velocity_from_attitude=False, position_sigma_m=HANDOVER_SIGMA_FACTOR * ad.gnss_pos_std_m)
+        gnss_handover(p, self, t_end, elapsed_s, q_b_b0, aid[:GNSS_COLUMNS], aid[GNSS_COLUMNS:])
 
     def counters(self) -> dict[str, int]:
-        """The filter's counts, and the coarse pairs screened out (glitches) and screens reopened after a run of
-        rejections."""
-        return {**super().counters(), "gnss_coarse_rejected": self.p.coarse.solver.rejected,
-                "gnss_coarse_reopened": self.p.coarse.solver.reopened}
+        """The filter's counts and the coarse stage's screen."""
+        return {**super().counters(), **gnss_coarse_counters(self.p)}

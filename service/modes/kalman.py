@@ -21,11 +21,11 @@ if TYPE_CHECKING:
 
 
 class KalmanMode:
-    """The shared part of a Kalman-stage mode of ``pipeline``; a subclass gives ``aid_kind``, ``aid_width``,
+    """The shared part of a Kalman-stage mode of ``pipeline``; a subclass gives ``aids``, ``coarse_kind``,
     :meth:`make_coarse`, :meth:`make_fine`, :meth:`measurements` and :meth:`step` (its hand-over)."""
 
-    aid_kind = ""
-    aid_width = 0
+    aids: tuple[tuple[str, int], ...] = ()
+    coarse_kind = ""
     checks_translation = False
     checks_noise = False
     gyro_rate = False
@@ -47,26 +47,29 @@ class KalmanMode:
     def make_fine(self) -> ErrorStateFilter | None:
         raise NotImplementedError
 
-    def measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
-        """(measurement name, value) of one control step's aiding values (finite)."""
+    def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
+        """(aiding kind, measurement name, value) of one control step's aiding values (NaN where the kind has
+        none)."""
         raise NotImplementedError
 
     def stages_text(self) -> str:
-        return f"{self.aid_kind}-aided alignment"
+        return f"{'+'.join(kind for kind, _ in self.aids)}-aided alignment"
 
     def kalman_step(self, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray, aid: np.ndarray | None,
-                    fresh: bool) -> bool:
+                    fresh: np.ndarray) -> bool:
         """Once the filter runs: predict over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body
-        attitude C_b^{b0}) and fold the step's measurements if its aiding is there and ``fresh`` (an epoch the
-        filter has not had: the same two epochs interpolated again are not a new measurement). False before the
-        filter runs."""
+        attitude C_b^{b0}) and fold each measurement whose aiding is there and whose kind is ``fresh`` (per kind
+        of ``aids``: an epoch the filter has not had; the same two epochs interpolated again are not a new
+        measurement). False before the filter runs."""
         fine = self.p.fine
         if fine is None or not fine.active:
             return False
         fine.predict(dalpha, dt_s, C_b_b0)
-        if fresh and aid is not None and np.isfinite(aid).all():
-            for name, value in self.measurements(aid):
-                fine.update(name, value)
+        if aid is not None and fresh.any():
+            kinds = [kind for kind, _ in self.aids]
+            for kind, name, value in self.measurements(aid):
+                if fresh[kinds.index(kind)] and np.isfinite(value).all():
+                    fine.update(name, value)
         return True
 
     def handover_solution(self, t_end: float, q_b_b0: np.ndarray, notice: tuple[str, str] | None

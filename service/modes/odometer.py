@@ -7,6 +7,8 @@ factor and lever arm as states if their priors are set), from the end of the win
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..align.coarse import InertialCoarseAlignment
@@ -16,13 +18,22 @@ from ..align.solvers import make_solver
 from ..align.velocity_aided import MultistageCoarseAlignment, VelocityAidedSource
 from .kalman import KalmanMode
 
+if TYPE_CHECKING:
+    from ..config import AidingConfig
+
 HANDOVER_VELOCITY_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one odometer reading: its σ is this many times the reading's."""
 
 
+def odometer_measurement(ad: AidingConfig) -> BodyVelocity:
+    """The Kalman stage's body-velocity measurement (its scale factor and lever arm as states if their priors are
+    set)."""
+    return BodyVelocity(ad.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
+
+
 class Odometer(KalmanMode):
-    aid_width = 3
-    aid_kind = "odo"
+    aids = (("odo", 3),)
+    coarse_kind = "odo"
 
     def make_coarse(self) -> InertialCoarseAlignment:
         p = self.p
@@ -39,15 +50,13 @@ class Odometer(KalmanMode):
         p = self.p
         if not p.config.fine.enabled:
             return None
-        ad = p.config.aiding
-        odometer = BodyVelocity(ad.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
-        return ErrorStateFilter(p.grade, [odometer], ad.gate_chi2)
+        return ErrorStateFilter(p.grade, [odometer_measurement(p.config.aiding)], p.config.aiding.gate_chi2)
 
-    def measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
-        return [("odo", aid)]
+    def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
+        return [("odo", "odo", aid)]
 
     def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
-             aid: np.ndarray | None, fresh: bool) -> None:
+             aid: np.ndarray | None, fresh: np.ndarray) -> None:
         p = self.p
         C_b_b0 = dcm_from_quat(q_b_b0)
         if self.kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):

@@ -29,8 +29,8 @@ HANDOVER_SIGMA_FACTOR = 3.0
 
 
 class Transfer(KalmanMode):
-    aid_width = MASTER_COLUMNS
-    aid_kind = "master"
+    aids = (("master", MASTER_COLUMNS),)
+    coarse_kind = "master"
     gyro_rate = True
     handover_limit_key = "master_linear_sigma_deg"
 
@@ -54,12 +54,12 @@ class Transfer(KalmanMode):
                     if ad.master_lever_sigma_m > 0.0 else GnssVelocity(ad.master_vel_std_mps, name="master_vel"))
         return ErrorStateFilter(p.grade, [velocity, MasterAttitude(ad.master_att_std_deg * DEG)], ad.gate_chi2)
 
-    def measurements(self, aid: np.ndarray) -> list[tuple[str, np.ndarray]]:
+    def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The master's velocity with the slave's gyro rate, and its attitude quaternion."""
-        return [("master_vel", np.r_[aid[4:7], aid[10:13]]), ("master_att", aid[:4])]
+        return [("master", "master_vel", np.r_[aid[4:7], aid[10:13]]), ("master", "master_att", aid[:4])]
 
     def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
-             aid: np.ndarray | None, fresh: bool) -> None:
+             aid: np.ndarray | None, fresh: np.ndarray) -> None:
         """Phase 2's prediction and matching per control step; before it, the switch from phase 1. ``aid``:
         the master's 10 values at the step's end, then the slave's gyro rate (3, rad/s)."""
         p = self.p

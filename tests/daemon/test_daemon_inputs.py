@@ -186,7 +186,7 @@ def frames_with_aiding(chunk: ImuChunk, kind: str, epochs: np.ndarray, late_s: f
     """IMU frames (type 1) with an aiding frame (type 2) of ``kind`` for each epoch (N, 1 + values) interleaved
     ``late_s`` seconds of data after its time stamp (after the last IMU frame if that is later)."""
     aiding = AidingPlayback(kind, epochs, late_s)
-    return encode_samples(chunk.t, chunk.dtheta, chunk.dv, 0, aiding) + aiding.rest()
+    return encode_samples(chunk.t, chunk.dtheta, chunk.dv, 0, [aiding]) + aiding.rest()
 
 
 def test_the_daemon_aligns_a_moving_vehicle_with_odometer_epochs_arriving_late_over_zenoh(tmp_path, pty_pair,
@@ -367,7 +367,7 @@ def test_fixes_off_the_imus_clock_are_named_and_degrade_health_after_the_grace(p
     chunk = simulated_run(scenario, 35.0)
     epochs = gnss_epochs(scenario.for_seed(1), 1)[:round(35.0 * scenario.gnss.rate_hz)]
     aiding = AidingPlayback("gnss", epochs, -100.0 + 0.1)   # sent in step with the IMU frames, stamped t - 100 s
-    stream = encode_samples(chunk.t + 100.0, chunk.dtheta, chunk.dv, 0, aiding) + aiding.rest()
+    stream = encode_samples(chunk.t + 100.0, chunk.dtheta, chunk.dv, 0, [aiding]) + aiding.rest()
     frames_10_s = stream.index(encode_imu(1000, chunk.t[1000] + 100.0, chunk.dtheta[1000], chunk.dv[1000]))
     write_stream(pty_pair.master_fd, stream[:frames_10_s])
     wait_until(lambda: run.daemon.counters.samples_used == 1000)
@@ -396,7 +396,7 @@ def test_after_the_aid_began_a_dead_receiver_is_a_fault_across_a_restart(pty_pai
     epochs = gnss_epochs(scenario.for_seed(1), 1)
     aiding = AidingPlayback("gnss", epochs[epochs[:, 0] <= 3.0], 0.1)
     first, rest = slice(0, 400), slice(500, 900)
-    write_stream(pty_pair.master_fd, encode_samples(chunk.t[first], chunk.dtheta[first], chunk.dv[first], 0, aiding)
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t[first], chunk.dtheta[first], chunk.dv[first], 0, [aiding])
                  + aiding.rest())
     wait_until(lambda: run.daemon.counters.samples_used == 400)
     time.sleep(0.3)
@@ -419,35 +419,35 @@ def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
     added, MAX_INTERVAL_S until a second epoch shows it and at most that; a sample after a 1-Hz fix waits for the next
     one, not max_wait_s; a 0.5-Hz receiver's first interval is waited for too (with 1 s assumed, its samples up to
     0.9 s went unaided once at start)."""
-    slow = AidingWait(AidingTrack(1, max_gap_s=3.0), max_wait_s=0.5)
-    slow.track.push(np.array([[0.0, 1.0]]))
+    slow = AidingWait([AidingTrack(1, max_gap_s=3.0)], max_wait_s=0.5)
+    slow.tracks[0].push(np.array([[0.0, 1.0]]))
     slow.push(np.column_stack((np.arange(1, 241) / 100.0, np.zeros((240, 6)))))   # to 2.4 s, the fix at 2 s late
     assert len(slow.release()[0]) == 0
-    slow.track.push(np.array([[2.0, 2.0]]))
+    slow.tracks[0].push(np.array([[2.0, 2.0]]))
     out, aid = slow.release()
     assert out[-1, 0] == 2.0 and np.allclose(aid[:, 1], 1.0 + out[:, 0] / 2.0)
-    wait = AidingWait(AidingTrack(1), max_wait_s=0.5)
-    assert wait.wait_s == 0.5
-    wait.track.push(np.array([[0.0, 1.0]]))
-    assert wait.wait_s == 0.5 + MAX_INTERVAL_S
-    wait.track.push(np.array([[1.0, 2.0]]))
-    assert wait.wait_s == 1.5
+    wait = AidingWait([AidingTrack(1)], max_wait_s=0.5)
+    assert wait.wait_s(wait.tracks[0]) == 0.5
+    wait.tracks[0].push(np.array([[0.0, 1.0]]))
+    assert wait.wait_s(wait.tracks[0]) == 0.5 + MAX_INTERVAL_S
+    wait.tracks[0].push(np.array([[1.0, 2.0]]))
+    assert wait.wait_s(wait.tracks[0]) == 1.5
     wait.push(np.column_stack((np.arange(101, 241) / 100.0, np.zeros((140, 6)))))   # 1.01-2.40 s
     out, _ = wait.release()
     assert len(out) == 0                                     # 0.9 s of data after 2.4 s: the next fix is not due
-    wait.track.push(np.array([[2.0, 3.0]]))
+    wait.tracks[0].push(np.array([[2.0, 3.0]]))
     out, aid = wait.release()
     assert out[-1, 0] == 2.0 and np.allclose(aid[:, 1], 1.0 + out[:, 0])   # interpolated between the fixes
     wait.push(np.column_stack((np.arange(241, 361) / 100.0, np.zeros((120, 6)))))   # to 3.6 s: the fix at 3 s late
     out, aid = wait.release()
     assert out[-1, 0] == 2.1 and np.isnan(aid[:, 1]).all()  # overdue by max_wait_s: those go unaided
     for interval in (0.02, 0.1):
-        fast = AidingWait(AidingTrack(1), max_wait_s=0.5)
-        fast.track.push(np.column_stack((np.arange(20) * interval, np.ones(20))))
-        assert fast.wait_s == pytest.approx(0.5 + interval)
-    lone = AidingWait(AidingTrack(1), max_wait_s=0.5)          # a fix, ten minutes without sky, one fix
-    lone.track.push(np.array([[0.0, 1.0], [600.0, 1.0]]))
-    assert lone.wait_s == 0.5 + MAX_INTERVAL_S                 # not 600.5 s: the output must not stop that long
+        fast = AidingWait([AidingTrack(1)], max_wait_s=0.5)
+        fast.tracks[0].push(np.column_stack((np.arange(20) * interval, np.ones(20))))
+        assert fast.wait_s(fast.tracks[0]) == pytest.approx(0.5 + interval)
+    lone = AidingWait([AidingTrack(1)], max_wait_s=0.5)          # a fix, ten minutes without sky, one fix
+    lone.tracks[0].push(np.array([[0.0, 1.0], [600.0, 1.0]]))
+    assert lone.wait_s(lone.tracks[0]) == 0.5 + MAX_INTERVAL_S   # not 600.5 s: the output must not stop that long
 
 
 def test_the_wait_gives_back_every_sample_once_in_order_whatever_the_pushes():
@@ -456,7 +456,7 @@ def test_the_wait_gives_back_every_sample_once_in_order_whatever_the_pushes():
     push does not overwrite it)."""
     rng = np.random.default_rng(4)
     rows = np.column_stack((np.arange(1, 3001) / 200.0, rng.normal(size=(3000, 6))))
-    wait = AidingWait(AidingTrack(1), max_wait_s=2.0)   # no epoch ever: a sample leaves 2 s of data after it
+    wait = AidingWait([AidingTrack(1)], max_wait_s=2.0)   # no epoch ever: a sample leaves 2 s of data after it
     released, start = [], 0
     for size in (1, 700, 3, 500, 1, 650, 145, 1000):
         wait.push(rows[start:start + size])
@@ -541,10 +541,10 @@ def test_a_sample_at_the_newest_aiding_epoch_gets_its_values_live_as_in_the_repl
     epochs = np.array([[0.1, 1.0], [0.2, 2.0], [1.5, 3.0], [1.6, 4.0]])   # a gap (> max_gap_s) before 1.5 s
     at = np.array([0.1, 1.5])
     replayed = AidingFeed(AidingTrack(1, max_gap_s=0.5), iter([epochs])).aid_at(at)[:, 1]
-    wait, live = AidingWait(AidingTrack(1, max_gap_s=0.5), max_wait_s=10.0), []
+    wait, live = AidingWait([AidingTrack(1, max_gap_s=0.5)], max_wait_s=10.0), []
     for row in epochs:
         wait.push(np.array([[row[0], 0, 0, 0, 0, 0, 0.0]]))   # an IMU sample at the epoch's time, then the epoch
-        wait.track.push(row)
+        wait.tracks[0].push(row)
         rows, values = wait.release()
         live += [v for t, v in zip(rows[:, 0], values[:, 1], strict=True) if t in at]
     assert replayed.tolist() == [1.0, 3.0]

@@ -78,10 +78,10 @@ def test_bad_odometer_data_is_counted_rejected_and_survived():
     faults = {"dropout_s": (60.0, 70.0), "slip": (90.0, 0.5, 5.0), "swapped": 5}
     scenario = get_scenario("seed003-60")
     clean = run_once(scenario, 3, config_from_mapping({}))
-    bad = run_once(scenario, 3, config_from_mapping({}), aid_faults=faults)
-    late_slip = run_once(scenario, 3, config_from_mapping({}), aid_faults={"slip": (300.0, 0.5, 5.0)})
+    bad = run_once(scenario, 3, config_from_mapping({}), aid_faults={"odo": faults})
+    late_slip = run_once(scenario, 3, config_from_mapping({}), aid_faults={"odo": {"slip": (300.0, 0.5, 5.0)}})
     c = bad.counters
-    assert c["out_of_order"] >= 5 and c["gaps"] == 1
+    assert c["odo_out_of_order"] >= 5 and c["odo_gaps"] == 1
     assert 95 <= c["odo_unaided_observations"] <= 105            # 10 s at 10 Hz
     assert c["odo_outlier_pairs"] >= 5                            # the slip's 0.5 s of pairs left out
     assert abs(heading_at(bad, 120.0) - heading_at(clean, 120.0)) < 0.1

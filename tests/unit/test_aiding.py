@@ -191,11 +191,11 @@ def test_sim_replay_eval_and_the_live_bench_configure_an_aiding_sensor_alike(tmp
     bench configure it, and the bench's [aiding] table is a valid configuration. An ideal sensor states no noise,
     and the demo must not configure that 0 (it would stop with "aiding.gnss_vel_std_mps: must be > 0")."""
     from sinsalign.service.config import config_from_mapping
-    from sinsalign.tools.sim.aiding import scenario_aiding
+    from sinsalign.tools.sim.aiding import scenario_aids
     from sinsalign.tools.sim.files import write_simulation
     from sinsalign.tools.sim.scenarios import seed_run
     scenario = seed_run(name, 1, 2.0)
-    aid = scenario_aiding(scenario, 1)
+    [aid] = scenario_aids(scenario, 1)
     files = write_simulation(scenario, 1, tmp_path)
     log = open_aiding_log(aid.kind, getattr(files, f"{aid.kind}_csv"))
     assert log.stated() == aid.stated()

@@ -210,20 +210,32 @@ class ScenarioAid:
                 **lever}
 
 
-def scenario_aiding(scenario: Scenario, seed: int) -> ScenarioAid | None:
-    """The scenario's aiding sensor for ``seed``, if it has one."""
-    if scenario.gnss is not None:
-        g = scenario.gnss
-        return ScenarioAid("gnss", gnss_epochs(scenario, seed), dict(zip(LEVER_KEYS, g.lever_b, strict=True))
-                           | _given(vel_std_mps=g.vel_noise_mps or None, pos_std_m=g.pos_noise_m or None))
-    if scenario.master is not None:
-        m = scenario.master
-        return ScenarioAid("master", master_epochs(scenario, seed),
-                           _given(att_std_deg=m.att_noise_deg or None, vel_std_mps=m.vel_noise_mps or None))
+def scenario_aids(scenario: Scenario, seed: int) -> list[ScenarioAid]:
+    """The scenario's aiding sensors for ``seed`` (none, one, or an odometer and a GNSS receiver), in the order
+    odo, gnss, master."""
+    aids = []
     if scenario.odometer is not None:
         o = scenario.odometer
-        return ScenarioAid("odo", odometer_epochs(scenario, seed), _given(vel_std_mps=o.noise_mps or None), o.lever_b)
-    return None
+        aids.append(ScenarioAid("odo", odometer_epochs(scenario, seed), _given(vel_std_mps=o.noise_mps or None),
+                                o.lever_b))
+    if scenario.gnss is not None:
+        g = scenario.gnss
+        aids.append(ScenarioAid("gnss", gnss_epochs(scenario, seed), dict(zip(LEVER_KEYS, g.lever_b, strict=True))
+                                | _given(vel_std_mps=g.vel_noise_mps or None, pos_std_m=g.pos_noise_m or None)))
+    if scenario.master is not None:
+        m = scenario.master
+        aids.append(ScenarioAid("master", master_epochs(scenario, seed),
+                                _given(att_std_deg=m.att_noise_deg or None, vel_std_mps=m.vel_noise_mps or None)))
+    return aids
+
+
+def daemon_aiding(aids: Sequence[ScenarioAid]) -> dict[str, object]:
+    """The daemon's ``[aiding]`` table for these sensors: their kinds as the inputs, and each one's
+    :meth:`ScenarioAid.daemon_config`."""
+    table: dict[str, object] = {}
+    for aid in aids:
+        table |= aid.daemon_config()
+    return {**table, "inputs": [aid.kind for aid in aids]} if aids else {}
 
 
 def with_faults(kind: str, epochs: np.ndarray, seed: int, **faults: object) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from sinsalign.protocol.imu_log import IMU_COLUMNS, TRUTH_COLUMNS, LogHeader, write_header, write_rows
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
 
-from .aiding import scenario_aiding, write_aiding_log
+from .aiding import scenario_aids, write_aiding_log
 from .imu import simulate
 from .scenarios import Scenario
 
@@ -58,12 +58,12 @@ def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: s
     scenario = scenario.for_seed(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    aid = scenario_aiding(scenario, seed)
+    aids = {aid.kind: aid for aid in scenario_aids(scenario, seed)}
     files = SimulatedFiles(out / f"{stem}.csv", out / f"{stem}_truth.csv",
-                           *(out / f"{stem}_{kind}.csv" if aid is not None and aid.kind == kind else None
+                           *(out / f"{stem}_{kind}.csv" if kind in aids else None
                              for kind in ("odo", "gnss", "master")))
-    if aid is not None:
-        write_aiding_log(getattr(files, f"{aid.kind}_csv"), aid.kind, aid.epochs, aid.log_keys)
+    for kind, aid in aids.items():
+        write_aiding_log(getattr(files, f"{kind}_csv"), kind, aid.epochs, aid.log_keys)
     with open(files.imu_csv, "w", encoding="utf-8") as imu, open(files.truth_csv, "w", encoding="utf-8") as truth:
         write_header(imu, log_keys(scenario, seed), IMU_COLUMNS)
         write_header(truth, {"scenario": scenario.name, "seed": seed}, TRUTH_COLUMNS)

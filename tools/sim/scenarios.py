@@ -233,6 +233,13 @@ def _driven(base: Scenario) -> Scenario:
 
 SCENARIOS["seed000-swing-driven"] = _driven(SCENARIOS["seed000-swing"])
 SCENARIOS.update({s.name: s for s in (_seed003(20), _seed003(60), _seed003(80))})
+ODO_GNSS_DURATION_S = 150.0
+SCENARIOS["seed003-odo-gnss"] = replace(
+    SCENARIOS["seed003-20"], name="seed003-odo-gnss", duration_s=ODO_GNSS_DURATION_S, eval_windows_s=((60.0, 60.0),
+                                                                                                     (120.0, 120.0)),
+    description=SCENARIOS["seed003-20"].description.replace(", 600 s", f", {ODO_GNSS_DURATION_S:g} s") +
+    "; GNSS 10 Hz, 0.1 m/s and 2 m white noise, antenna 0.6 m forward and 0.8 m up (1 m)",
+    gnss=GnssSpec(10.0, 0.1, 2.0, (0.0, 0.6, 0.8)))
 SCENARIOS["seed004"] = _scenario(
     "seed004", "seed 004 in-flight with GNSS: L=30°, 100 Hz, 300 s of manoeuvres at 100 m/s; gyro 0.01°/h bias + "
     "0.1°/h/√Hz, acc 50 µg bias + 500 µg/√Hz (bias signs drawn per seed and axis); GNSS 50 Hz, 0.1 m/s and 2 m "
