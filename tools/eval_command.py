@@ -15,7 +15,8 @@ AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot
                 "seed004": ("evaluate_gnss.seed004_table", "evaluate_gnss.plot_seed004"),
                 "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
                 "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates"),
-                "transfer-mems": ("evaluate_transfer.handover_table", "evaluate_transfer.plot_handover")}
+                "transfer-mems": ("evaluate_transfer.handover_table", "evaluate_transfer.plot_handover"),
+                "seed003-odo-gnss": ("evaluate_odo_gnss.odo_gnss_table", "evaluate_odo_gnss.plot_odo_gnss")}
 """``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
 sinsalign.tools)."""
 
@@ -28,7 +29,7 @@ def _tool(name: str) -> Callable:
 
 def _aided_table(name: str, seeds: range, out: Path, provenance: str) -> None:
     """The aided modes' own tables (seed002: master INS, seed003: odometer, seed004: GNSS, seed004-rates and
-    seed002-rates: slower GNSS receivers and master INS) and plots."""
+    seed002-rates: slower GNSS receivers and master INS, seed003-odo-gnss: odometer and GNSS together) and plots."""
     table, plot = (_tool(f) for f in AIDED_TABLES[name])
     text, runs = table(seeds)
     if name == "seed002":

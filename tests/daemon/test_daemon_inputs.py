@@ -450,6 +450,25 @@ def test_a_sample_waits_for_the_streams_own_interval_plus_max_wait_s():
     assert lone.wait_s(lone.tracks[0]) == 0.5 + MAX_INTERVAL_S   # not 600.5 s: the output must not stop that long
 
 
+def test_a_sample_waits_for_every_stream_of_the_mode_each_for_its_own_interval():
+    """Two streams (an odometer at 100 Hz, a receiver at 10 Hz): a sample leaves once both hold an epoch at or after
+    it, or once it is overdue for the one that lags; its aiding is both tracks' rows side by side."""
+    odo, gnss = AidingTrack(1), AidingTrack(1)
+    wait = AidingWait([odo, gnss], max_wait_s=0.5)
+    odo.push(np.column_stack((np.arange(0, 101) / 100.0, np.arange(0, 101) / 100.0)))     # 0-1 s
+    gnss.push(np.column_stack((np.arange(0, 6) / 10.0, 10.0 + np.arange(0, 6) / 10.0)))  # 0-0.5 s
+    wait.push(np.column_stack((np.arange(1, 101) / 100.0, np.zeros((100, 6)))))           # 0.01-1 s
+    out, aid = wait.release()
+    assert out[-1, 0] == 0.5 and aid.shape == (50, 4)                       # the receiver's newest fix holds them
+    assert np.allclose(aid[:, 1], out[:, 0]) and np.allclose(aid[:, 3], 10.0 + out[:, 0])
+    assert np.array_equal(aid[:, 0], np.arange(1, 51)) and np.array_equal(aid[:, 2], np.floor(out[:, 0] * 10 + 1e-9))
+    wait.push(np.column_stack((np.arange(101, 201) / 100.0, np.zeros((100, 6)))))         # to 2 s, no fix since 0.5 s
+    out, aid = wait.release()
+    # overdue for the receiver after 2 − (0.5 + its 0.1-s interval) = 1.4 s; the odometer's values end at 1 s
+    assert out[-1, 0] == pytest.approx(1.4) and np.isnan(aid[:, 3]).all()
+    assert np.isfinite(aid[out[:, 0] <= 1.0, 1]).all() and np.isnan(aid[out[:, 0] > 1.0, 1]).all()
+
+
 def test_the_wait_gives_back_every_sample_once_in_order_whatever_the_pushes():
     """The held samples live in one store that grows in doublings (not re-concatenated on every push): pushes of 1 to
     700 rows, past the store's first size, come back whole, in order, and a released block is the caller's (a later

@@ -269,6 +269,20 @@ def test_interleaved_aiding_frames_have_their_own_sequence_and_are_no_imu_gaps()
     assert counters["frames"] == 9 and counters["unknown_type"] == 0
 
 
+def test_each_aiding_kind_numbers_its_own_frames():
+    """An odometer at 100 Hz and a receiver at 10 Hz each count their frames: interleaved on one line they are no
+    gaps or steps back of each other; a receiver's lost frame is one gap, a repeated odometer frame one repeat."""
+    odo = [encode_aiding(k, 0.01 * k, "odo", [0.0, 20.0, 0.0]) for k in range(20)]
+    gnss = [encode_aiding(7000 + k, 0.1 * k, "gnss", [45.0, 126.0, 150.0, 0.0, 20.0, 0.0]) for k in range(3)]
+    stream = b"".join(odo[:10]) + gnss[0] + b"".join(odo[10:15]) + odo[14] + gnss[2] + b"".join(odo[15:])
+    decoder = FrameDecoder()
+    out = decoder.feed(stream)
+    assert [f.seq for f in out if f.payload[0] == AIDING_KIND_CODES["gnss"]] == [7000, 7002]
+    assert [f.seq for f in out if f.payload[0] == AIDING_KIND_CODES["odo"]] == list(range(20))
+    assert {k: v for k, v in decoder.all_counters().items() if k.startswith("aiding_seq_")} == {
+        "aiding_seq_gaps": 1, "aiding_seq_repeats": 1, "aiding_seq_backwards": 0, "aiding_seq_resets": 0}
+
+
 def test_frames_are_self_delimiting_for_other_types():
     raw = encode_frame(9, 0, 0, b"\x01\x02\x03")
     decoder = FrameDecoder()
