@@ -7,9 +7,9 @@ One loop thread does everything in order, driven by the IMU frames' own timestam
 arrived (serial port and/or the Zenoh IMU topic), decode, check every sample (time must move
 forward, values finite), feed the pipeline, publish each attitude record as it comes out, and
 publish the status at ``daemon.status_period_s`` of wall time. In an aided mode
-(``aiding.inputs``: ``odo``, ``gnss`` or ``master``) the epochs of that kind (``…/aid/<kind>`` on Zenoh, serial
-aiding frames) go to its track, and each IMU sample waits for its aiding (at most the stream's usual
-interval plus ``aiding.max_wait_s`` of data time) before the pipeline takes both. Every drop is counted in the
+(``aiding.inputs``: ``odo``, ``gnss``, both, or ``master``) the epochs of each kind (``…/aid/<kind>`` on Zenoh,
+serial aiding frames) go to its track, and each IMU sample waits for its aiding (at most each stream's usual
+interval plus ``aiding.max_wait_s`` of data time) before the pipeline takes them. Every drop is counted in the
 status; nothing received over the wire is executed or changes the configuration. The Zenoh side
 also holds a liveliness token and answers a read-only query with the current state and the
 effective configuration.

@@ -185,22 +185,24 @@ def test_a_master_track_interpolates_its_attitude_as_a_rotation_whatever_the_qua
 
 
 @pytest.mark.parametrize("name", ["seed003-20", "seed003-20-ideal", "seed004", "seed004-ideal", "seed002",
-                                  "seed002-ideal"])
+                                  "seed002-ideal", "seed003-odo-gnss", "seed003-odo-gnss-ideal"])
 def test_sim_replay_eval_and_the_live_bench_configure_an_aiding_sensor_alike(tmp_path: Path, name: str) -> None:
     """What a simulated aiding log states of its sensor is read back by the replay as the evaluation and the live
-    bench configure it, and the bench's [aiding] table is a valid configuration. An ideal sensor states no noise,
-    and the demo must not configure that 0 (it would stop with "aiding.gnss_vel_std_mps: must be > 0")."""
+    bench configure it, and the bench's [aiding] table (every sensor of the scenario) is a valid configuration. An
+    ideal sensor states no noise, and the demo must not configure that 0 (it would stop with
+    "aiding.gnss_vel_std_mps: must be > 0")."""
     from sinsalign.service.config import config_from_mapping
-    from sinsalign.tools.sim.aiding import scenario_aids
+    from sinsalign.tools.sim.aiding import daemon_aiding, scenario_aids
     from sinsalign.tools.sim.files import write_simulation
     from sinsalign.tools.sim.scenarios import seed_run
     scenario = seed_run(name, 1, 2.0)
-    [aid] = scenario_aids(scenario, 1)
+    aids = scenario_aids(scenario, 1)
     files = write_simulation(scenario, 1, tmp_path)
-    log = open_aiding_log(aid.kind, getattr(files, f"{aid.kind}_csv"))
-    assert log.stated() == aid.stated()
-    assert bool(aid.stated()) == (not name.endswith("-ideal") or aid.kind == "gnss")   # an antenna's lever arm stays
-    config = config_from_mapping({"aiding": aid.daemon_config()})
-    assert config.aiding.inputs == (aid.kind,)
-    for key, value in aid.stated().items():
-        assert getattr(config.aiding, key) == value
+    config = config_from_mapping({"aiding": daemon_aiding(aids)})
+    assert config.aiding.inputs == tuple(aid.kind for aid in aids) and len(aids) == 1 + ("odo-gnss" in name)
+    for aid in aids:
+        log = open_aiding_log(aid.kind, getattr(files, f"{aid.kind}_csv"))
+        assert log.stated() == aid.stated()
+        assert bool(aid.stated()) == (not name.endswith("-ideal") or aid.kind == "gnss")   # an antenna's lever arm
+        for key, value in aid.stated().items():
+            assert getattr(config.aiding, key) == value
