@@ -80,14 +80,14 @@ class AidingKind:
 
 
 def stated_aiding(kind: str, keys: Mapping[str, object]) -> dict[str, object]:
-    """The ``[aiding]`` configuration that an aiding log's comment ``keys`` state of its sensor (they override the
-    configuration's): each noise figure above 0 (a 0 states an ideal sensor, which no filter can weigh: the
-    configuration's stays) and, for a kind with a lever arm, the lever arm once any of its keys is given."""
+    """The ``[aiding.<kind>]`` configuration that an aiding log's comment ``keys`` state of its sensor (they override
+    the configuration's, under the same names): each noise figure above 0 (a 0 states an ideal sensor, which no
+    filter can weigh: the configuration's stays) and, for a kind with a lever arm, ``lever_m`` once any of its keys
+    is given."""
     spec = KINDS[kind]
-    out: dict[str, object] = {_CONFIG_KEYS.get((kind, key), f"{kind}_{key}"): float(keys[key])
-                              for key in spec.std_keys if keys.get(key)}
+    out: dict[str, object] = {key: float(keys[key]) for key in spec.std_keys if keys.get(key)}
     if spec.has_lever and any(key in keys for key in LEVER_KEYS):
-        out[f"{kind}_lever_m"] = tuple(float(keys.get(key, 0.0)) for key in LEVER_KEYS)
+        out["lever_m"] = tuple(float(keys.get(key, 0.0)) for key in LEVER_KEYS)
     return out
 
 
@@ -103,8 +103,6 @@ KINDS = {k.name: k for k in (
                    (("qw", "qx", "qy", "qz"), "quaternion norm", QUATERNION_NORM),
                    _speed(("vE", "vN", "vU"), "master")))),
 )}
-_CONFIG_KEYS = {("odo", "vel_std_mps"): "odo_std_mps"}
-"""Where a log key's configuration key is not ``<kind>_<key>``."""
 
 
 @dataclass(frozen=True, slots=True)

@@ -110,7 +110,7 @@ class AidingTrack:
     @classmethod
     def configured(cls, kind: str, aiding: AidingConfig) -> AidingTrack:
         """:meth:`for_kind` with the configuration's latency of that kind and ``max_gap_s``."""
-        return cls.for_kind(kind, getattr(aiding, f"{kind}_latency_s"), aiding.max_gap_s)
+        return cls.for_kind(kind, getattr(aiding, kind).latency_s, aiding.max_gap_s)
 
     def push(self, rows: np.ndarray) -> None:
         """Epochs (N, 1 + width): time stamp (s, the stream's clock) then the values."""

@@ -93,7 +93,7 @@ class AlignmentPipeline:
     site : position of the IMU.
     rate_hz : nominal IMU sample rate.
     datasheet : the log's datasheet keys, if any (override ``config.sensor``).
-    live : slice the stored-data passes into ``fine.live_pass_steps`` steps per block instead of
+    live : slice the stored-data passes into ``fine.compass.live_pass_steps`` steps per block instead of
         running them at once (offline).
     initial_q_b_n : start the compass loops at once from this attitude at the first sample
         (compass alone, for evaluation), skipping the coarse stage.

@@ -25,6 +25,7 @@ Typical session:
   sinsalign eval seed001-swing --fine                       # seed 001's compass comparison
   sinsalign eval seed000-swing --no-fine --budget          # which IMU error the heading's figures come from
   sinsalign demo                                            # the live bench in one command
+  sinsalign config --config my.toml                         # the configuration in effect, every key
 
 Live:
   sinsalign bench --speed 1                      # virtual IMU on a new pty; prints its name
@@ -60,8 +61,9 @@ def _overrides(args: argparse.Namespace) -> dict:
                                    ("obs_interval_s", args.obs_interval),
                                    ("swing_bias", args.swing_bias)) if v is not None}
     out = {"alignment": alignment} if alignment else {}
-    fine = {k: v for k, v in (("enabled", False if args.no_fine else None), ("stored_pairs", args.stored_pairs))
-            if v is not None}
+    fine: dict = {"enabled": False} if args.no_fine else {}
+    if args.stored_pairs is not None:
+        fine["compass"] = {"stored_pairs": args.stored_pairs}
     if fine:
         out["fine"] = fine
     if getattr(args, "period", None) is not None:
@@ -262,6 +264,12 @@ def cmd_soak(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_config(args: argparse.Namespace) -> int:
+    from sinsalign.service.config import config_toml, load_config, reference_markdown
+    print(reference_markdown() if args.reference else config_toml(load_config(args.config)), end="")
+    return 0
+
+
 def cmd_watch(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
@@ -375,7 +383,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--aid", action="append", metavar="KIND",
                    help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames; aiding.inputs); "
                    "the kinds taken select the mode: odo in-motion alignment with odometer/DVL body velocity, gnss "
-                   "in-flight alignment with GNSS fixes (antenna lever arm aiding.gnss_lever_m), odo and gnss "
+                   "in-flight alignment with GNSS fixes (antenna lever arm aiding.gnss.lever_m), odo and gnss "
                    "together a land vehicle with both, master transfer alignment against a master INS")
     _add_alignment_options(p)
     _add_zenoh_options(p)
@@ -425,6 +433,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--hours", type=POSITIVE, default=24.0)
     p.add_argument("--report-every", type=POSITIVE, default=3600.0, metavar="S", help="simulated seconds per report")
     p.set_defaults(func=cmd_soak)
+
+    p = sub.add_parser("config", help="print the configuration in effect as TOML, or the reference of every key",
+                       description="Print every key with its value after the defaults and --config FILE (validated: "
+                       "a wrong key or value is the same one-line error as at a start), as a TOML file --config "
+                       "takes back; with --reference, the Markdown reference of every key: its table, default, "
+                       "bounds and meaning (docs/reference.md, 'Configuration').")
+    p.add_argument("--config", metavar="FILE", help="TOML configuration to validate and show")
+    p.add_argument("--reference", action="store_true", help="the reference of every key instead")
+    p.set_defaults(func=cmd_config)
 
     p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
                        description="Subscribe to <prefix>/*/attitude and status (with --unit: that unit's) and "

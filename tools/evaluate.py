@@ -80,7 +80,7 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
     runs the aided pipeline, its readings going through the same aiding tracks as a log's; ``kinds`` keeps only those
     of its aiding sensors (None: all); ``aid_faults`` gives per kind the keyword arguments of
     :func:`with_odometer_faults`, :func:`with_gnss_faults` or :func:`with_master_faults`.
-    ``gnss_lever_stated``: the GNSS log states the antenna's lever arm (it overrides ``aiding.gnss_lever_m``);
+    ``gnss_lever_stated``: the GNSS log states the antenna's lever arm (it overrides ``aiding.gnss.lever_m``);
     False leaves the configuration's (zero by default: the lever arm ignored).
     """
     scenario = scenario.for_seed(seed)
@@ -94,8 +94,9 @@ def run_once(scenario: Scenario, seed: int, config: Config, initial_error_deg: S
                                      initial_q_b_n=initial)
     for aid in aids:
         # the sensor as its log states it (its noise; a GNSS antenna's lever arm, unless that is left unstated)
-        stated = {k: v for k, v in aid.stated().items() if gnss_lever_stated or k != "gnss_lever_m"}
-        config = replace(config, aiding=replace(config.aiding, **stated))
+        stated = {k: v for k, v in aid.stated().items()
+                  if gnss_lever_stated or (aid.kind, k) != ("gnss", "lever_m")}
+        config = config_from_mapping({"aiding": {aid.kind: stated}}, config)
     # the aided pipeline, its readings through the same aiding tracks as a log's
     faults = aid_faults or {}
     feeds = {aid.kind: AidingFeed(AidingTrack.configured(aid.kind, config.aiding),
@@ -400,9 +401,9 @@ def solver_table(name: str, seeds: Sequence[int], progress: bool = True) -> tupl
 
 
 FINE_VARIANTS = (("OPREQ only", COARSE_ONLY, None),
-                 ("compass alone from 1.5°", {"fine": {"stored_pairs": 0}}, (0.1, 0.1, 1.5)),
+                 ("compass alone from 1.5°", {"fine": {"compass": {"stored_pairs": 0}}}, (0.1, 0.1, 1.5)),
                  ("compass alone from 1.5°, stored data", {}, (0.1, 0.1, 1.5)),
-                 ("OPREQ → compass", {"fine": {"stored_pairs": 0}}, None),
+                 ("OPREQ → compass", {"fine": {"compass": {"stored_pairs": 0}}}, None),
                  ("OPREQ → compass, stored data (default)", {}, None))
 """Seed 001's comparison: (label, configuration overrides, initial error of a compass-alone start)."""
 FINE_BAND_DEG = 0.05

@@ -18,7 +18,7 @@ from .evaluate import RunResult, monte_carlo, nearest_epoch
 SPEEDS_MPS = (20, 60, 80)
 COARSE_AT_S = 120.0
 FINE_AT_S = 600.0
-TRADITIONAL = {"aiding": {"levels": 1}, "fine": {"enabled": False}}
+TRADITIONAL = {"aiding": {"odo": {"levels": 1}}, "fine": {"enabled": False}}
 """One level: the seed's traditional V^b model, no re-runs."""
 
 

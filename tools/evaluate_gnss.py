@@ -42,7 +42,7 @@ VARIANTS: tuple[tuple[str, str, bool, dict | None], ...] = (
     ("PIF, lever arm compensated", "pif", True, None),
     ("PIF, lever arm ignored", "pif", False, None),
     (FAULTS_LABEL, "vif", True, GNSS_FAULTS))
-"""Seed 004's comparison: (label, aiding.gnss_formula, the log states the lever arm, GNSS faults)."""
+"""Seed 004's comparison: (label, aiding.gnss.formula, the log states the lever arm, GNSS faults)."""
 
 
 def _stats(runs: Sequence[RunResult], t_s: float) -> HeadingStats | None:
@@ -111,7 +111,7 @@ def seed004_table(seeds: Sequence[int], progress: bool = True,
     all_runs: dict[str, list[RunResult]] = {}
     for label, formula, lever_stated, faults in VARIANTS:
         try:
-            runs = monte_carlo(SCENARIO, seeds, {"aiding": {"gnss_formula": formula}}, progress=progress,
+            runs = monte_carlo(SCENARIO, seeds, {"aiding": {"gnss": {"formula": formula}}}, progress=progress,
                                label=label, aid_faults=faults and {"gnss": faults}, duration_s=duration_s,
                                gnss_lever_stated=lever_stated)
         except (ConfigError, NotImplementedError) as e:

@@ -47,9 +47,9 @@ MASTER_FAULTS = {"dropout_s": DROPOUT_S, "repeated": 20, "late_s": LATE_S}
 FAULTS_LABEL = "dual model + master faults"
 VARIANTS: tuple[tuple[str, dict, dict | None], ...] = (
     ("dual model (switch by σ)", {}, None),
-    ("dual model (switch at 10 s, the seed's)", {"aiding": {"master_handover_s": 10.0}}, None),
+    ("dual model (switch at 10 s, the seed's)", {"aiding": {"master": {"handover_s": 10.0}}}, None),
     ("phase 1 alone (one large-angle model)", COARSE_ONLY, None),
-    (FAULTS_LABEL, {"aiding": {"master_latency_s": LATE_S}}, MASTER_FAULTS),
+    (FAULTS_LABEL, {"aiding": {"master": {"latency_s": LATE_S}}}, MASTER_FAULTS),
 )
 """(label, configuration overrides, master faults)."""
 
@@ -97,7 +97,7 @@ def seed002_table(seeds: Sequence[int], progress: bool = True) -> tuple[str, dic
     counters = summed_counters(all_runs[FAULTS_LABEL])
     lines += ["", f"{FAULTS_LABEL}: no master epochs {DROPOUT_S[0]:g}–{DROPOUT_S[1]:g} s, "
               f"{MASTER_FAULTS['repeated']} epochs sent twice, time stamps {LATE_S:g} s late "
-              "(aiding.master_latency_s); counters summed over the seeds: " +
+              "(aiding.master.latency_s); counters summed over the seeds: " +
               ", ".join(f"{k} {v}" for k, v in sorted(counters.items()) if v)]
     return "\n".join(lines), all_runs
 
@@ -167,7 +167,7 @@ def ekf_run_once(scenario: Scenario, seed: int, config: Config | None = None,
     chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s,
                            seed))
     t = np.concatenate([c.t for c in chunks])
-    settings = EkfSettings(config.aiding.master_att_std_deg * DEG, config.aiding.master_vel_std_mps,
+    settings = EkfSettings(config.aiding.master.att_std_deg * DEG, config.aiding.master.vel_std_mps,
                            velocity_matching=velocity_matching)
     period = config.output.period_s
     output_t = period * np.arange(1, int(np.floor(scenario.duration_s / period + 1e-9)) + 1)
@@ -242,8 +242,8 @@ SETTLED_FROM_S = 76.0
 """After the rolls."""
 HANDOVER_VARIANTS: tuple[tuple[str, dict], ...] = (
     ("default: phase 1 to 0.2°, or stalled within 5°; lever arm estimated", {}),
-    ("phase 1 until 0.2° only", {"aiding": {"master_linear_sigma_deg": 0.2}}),
-    ("lever arm taken as configured (0)", {"aiding": {"master_lever_sigma_m": 0.0}}),
+    ("phase 1 until 0.2° only", {"aiding": {"master": {"linear_sigma_deg": 0.2}}}),
+    ("lever arm taken as configured (0)", {"aiding": {"master": {"lever_sigma_m": 0.0}}}),
 )
 """(label, configuration overrides) of the hand-over table, each on the good and the poor slave."""
 

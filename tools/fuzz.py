@@ -37,7 +37,7 @@ import time
 import traceback
 from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from functools import partial
 from pathlib import Path
 from typing import Any
@@ -65,7 +65,7 @@ from sinsalign.protocol.serial_frame import (
     encode_aiding,
     encode_imu,
 )
-from sinsalign.service.config import Config, ConfigError, config_from_mapping, load_config
+from sinsalign.service.config import Config, ConfigError, config_from_mapping, load_config, tables, value_fields
 from sinsalign.service.ingest import Ingest, gate_for
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.files import log_keys
@@ -947,10 +947,9 @@ class Key:
 
 
 def _sections() -> dict[str, list[Key]]:
-    """Every configuration key, by section."""
-    config = Config()
-    return {s.name: [Key(f.name, getattr(getattr(config, s.name), f.name), dict(f.metadata), "str" in str(f.type))
-                     for f in fields(getattr(config, s.name))] for s in fields(config)}
+    """Every configuration key, by table (``aiding.odo`` for a sub-table)."""
+    return {name: [Key(f.name, getattr(table, f.name), dict(f.metadata), "str" in str(f.type))
+                   for f in value_fields(table)] for name, table in tables(Config())}
 
 
 class Nested(list):
@@ -1021,7 +1020,9 @@ def random_mapping(pool: Pool, sections: dict[str, list[Key]]) -> dict:
             data[section] = hostile_object(pool)
             continue
         keys = sections.get(section, [Key("unknown", 0.0, {}, False)])
-        table = data.setdefault(section, {}) if isinstance(data.get(section, {}), dict) else {}
+        table = data
+        for part in str(section).split("."):   # a sub-table inside its table; under a non-table, a throwaway
+            table = table.setdefault(part, {}) if isinstance(table.get(part, {}), dict) else {}
         for _ in range(1 + pool.below(8)):
             key = keys[pool.below(len(keys))]
             table[key.name if pool.random() < 0.97 else _text(pool)] = key_value(pool, key)
@@ -1048,12 +1049,13 @@ def toml_literal(value: object) -> str:
     return repr(value)
 
 
-def toml_text(data: dict) -> str:
-    """``data`` as a TOML file: top-level values first, then a ``[table]`` per table."""
-    top = [f"{json.dumps(str(k))} = {toml_literal(v)}" for k, v in data.items() if not isinstance(v, dict)]
-    tables = [f"[{json.dumps(str(k))}]\n" + "".join(f"{json.dumps(str(n))} = {toml_literal(v)}\n" for n, v in t.items())
-              for k, t in data.items() if isinstance(t, dict)]
-    return "\n".join(top) + "\n" + "\n".join(tables)
+def toml_text(data: dict, path: tuple[str, ...] = ()) -> str:
+    """``data`` as a TOML file: top-level values first, then a ``[table]`` per table (``[table.sub]`` per sub-table,
+    after its table's values)."""
+    values = "".join(f"{json.dumps(str(k))} = {toml_literal(v)}\n" for k, v in data.items() if not isinstance(v, dict))
+    header = f"[{'.'.join(json.dumps(part) for part in path)}]\n" if path else ""
+    return header + values + "".join("\n" + toml_text(t, (*path, str(k))) for k, t in data.items()
+                                     if isinstance(t, dict))
 
 
 def hostile_toml(pool: Pool, text: str) -> bytes:
@@ -1071,7 +1073,7 @@ def hostile_toml(pool: Pool, text: str) -> bytes:
         data[at:at] = pool.rng.bytes(1 + pool.below(63))
     elif roll < 0.45:
         depth = 100 + pool.below(4900)
-        data += b"\n[fine]\nlevel_sigma = " + b"[" * depth + b"]" * depth + b"\n"
+        data += b"\n[fine.compass]\nlevel_sigma = " + b"[" * depth + b"]" * depth + b"\n"
     elif roll < 0.5:
         data += b"\n" + bytes(data)
     return bytes(data)

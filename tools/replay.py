@@ -49,7 +49,7 @@ def open_aids(aids: dict[str, str], config: Config) -> tuple[Config, dict[str, A
     for kind, path in aids.items():
         log = open_aiding_log(kind, path)
         feeds[kind] = AidingFeed(AidingTrack.configured(kind, config.aiding), log.blocks(limits=log.kind.limits))
-        config = config_from_mapping({"aiding": log.stated()}, config)
+        config = config_from_mapping({"aiding": {kind: log.stated()}}, config)
     return config, feeds
 
 

@@ -3,8 +3,8 @@
 Observation source: the fixed site (gravity turning with the Earth). Solver: ``alignment.solver`` (OPREQ, GLS …, or
 the one "auto" picks for the datasheet). σ: the coarse stage's model, with the noise the data show. Fine stage: the
 compass loops with their gain schedule and stored-data passes, from the step at which the coarse heading σ (its
-noise part) is within ``fine.handover_sigma_deg`` (or at ``fine.handover_time_s``). The output takes level and
-heading each from whichever stage claims the smaller σ.
+noise part) is within ``fine.compass.handover_sigma_deg`` (or at ``fine.compass.handover_time_s``). The output
+takes level and heading each from whichever stage claims the smaller σ.
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ class FixedBase:
         p = self.p
         if not p.with_fine:
             return None
-        f = p.config.fine
+        f = p.config.fine.compass
         return FineAlignment(p.site, p.grade, GainSchedule(f.schedule_time_s, f.level_sigma, f.azimuth_sigma),
                              p.block_samples * p.sample_period_s, f.stored_data_s, f.stored_pairs,
                              f.live_pass_steps if p.live else None)
@@ -85,10 +85,10 @@ class FixedBase:
             solution = p.coarse.solution_at(t_end, q_b_b0)
             noise = self._noise_part(solution.heading_sigma_deg, solution.level_sigma_deg)
             p.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *noise,
-                         t_loop_s=p.config.fine.handover_schedule_s)
+                         t_loop_s=p.config.fine.compass.handover_schedule_s)
 
     def _handover_due(self, elapsed_s: float) -> bool:
-        p, f = self.p, self.p.config.fine
+        p, f = self.p, self.p.config.fine.compass
         if f.handover == "time":
             return elapsed_s >= f.handover_time_s
         if p.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s or p.noise_unchecked:

@@ -3,8 +3,8 @@ rate appended for the lever arm.
 
 Observation source: the VIF or PIF source (service/align/gnss_aided.py: antenna velocity and position, lever arm
 compensated); solver: the centred fit weighted by the pairs' stated noise, screening each pair against the fit (a
-glitch is left out and counted); σ from the fit itself. From ``aiding.gnss_handover_s`` on (once the coarse heading
-σ is within ``aiding.handover_heading_sigma_deg``) the fine stage is the error-state Kalman filter with GNSS
+glitch is left out and counted); σ from the fit itself. From ``aiding.gnss.handover_s`` on (once the coarse heading
+σ is within ``fine.kalman.handover_heading_sigma_deg``) the fine stage is the error-state Kalman filter with GNSS
 velocity and position measurements (lever arm in both), gated by χ²: it rides through outages on the IMU alone,
 with σ growing. No translation check: this base flies.
 """
@@ -44,8 +44,8 @@ def gnss_coarse(p: AlignmentPipeline, rate_column: int = GNSS_COLUMNS) -> GnssCo
     """The coarse stage on the fixes (VIF or PIF source, the centred fit screening each pair); the gyro rate from
     aid column ``rate_column``."""
     a, ad = p.config.alignment, p.config.aiding
-    source_class = GnssPositionSource if ad.gnss_formula == "pif" else GnssVelocitySource
-    source = source_class(p.site, np.array(ad.gnss_lever_m), ad.gnss_vel_std_mps, ad.gnss_pos_std_m, rate_column)
+    source_class = GnssPositionSource if ad.gnss.formula == "pif" else GnssVelocitySource
+    source = source_class(p.site, np.array(ad.gnss.lever_m), ad.gnss.vel_std_mps, ad.gnss.pos_std_m, rate_column)
     # the pairs are screened against the fit (a glitch of the fixes would otherwise enter it for good)
     solver = CentredWahba(weighted=True, gate_chi2=PAIR_GATE_CHI2, drift=source.drift)
     return GnssCoarseAlignment(source, p.grade, solver, p.sample_period_s, a.obs_interval_s,
@@ -54,8 +54,8 @@ def gnss_coarse(p: AlignmentPipeline, rate_column: int = GNSS_COLUMNS) -> GnssCo
 
 def gnss_filter_measurements(ad: AidingConfig) -> list[Measurement]:
     """The Kalman stage's GNSS velocity and position measurements, both through the antenna's lever arm."""
-    lever = np.array(ad.gnss_lever_m)
-    return [GnssVelocity(ad.gnss_vel_std_mps, lever), GnssPosition(ad.gnss_pos_std_m, lever)]
+    lever = np.array(ad.gnss.lever_m)
+    return [GnssVelocity(ad.gnss.vel_std_mps, lever), GnssPosition(ad.gnss.pos_std_m, lever)]
 
 
 def gnss_measurements(fix: np.ndarray, gyro_rate: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
@@ -67,9 +67,9 @@ def gnss_measurements(fix: np.ndarray, gyro_rate: np.ndarray) -> list[tuple[str,
 def gnss_handover(p: AlignmentPipeline, mode: KalmanMode, t_end: float, elapsed_s: float, q_b_b0: np.ndarray,
                   fix: np.ndarray, gyro_rate: np.ndarray) -> None:
     """Start ``p``'s filter from the coarse solution and one fix (and the gyro rate, rad/s) once the alignment has
-    run ``aiding.gnss_handover_s`` and the coarse heading σ is within the mode's limit."""
+    run ``aiding.gnss.handover_s`` and the coarse heading σ is within the mode's limit."""
     ad = p.config.aiding
-    if not np.isfinite(fix).all() or elapsed_s + 1e-9 < ad.gnss_handover_s:
+    if not np.isfinite(fix).all() or elapsed_s + 1e-9 < ad.gnss.handover_s:
         return
     solution = mode.handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
                                                           "(manoeuvre)"))
@@ -77,12 +77,12 @@ def gnss_handover(p: AlignmentPipeline, mode: KalmanMode, t_end: float, elapsed_
         return
     C_b_n = dcm_from_quat(solution.q_b_n)
     antenna = np.r_[fix[:2] * DEG, fix[2]]
-    lever = np.array(ad.gnss_lever_m)
+    lever = np.array(ad.gnss.lever_m)
     V_n = fix[3:6] - antenna_lever_velocity(C_b_n, gyro_rate, antenna[0], lever)
     position = antenna - enu_to_geodetic_step(C_b_n @ lever, antenna)
     p.fine.start(C_b_n, dcm_from_quat(q_b_b0), V_n, position, solution.level_sigma_deg * DEG,
-                 solution.heading_sigma_deg * DEG, HANDOVER_SIGMA_FACTOR * ad.gnss_vel_std_mps,
-                 velocity_from_attitude=False, position_sigma_m=HANDOVER_SIGMA_FACTOR * ad.gnss_pos_std_m)
+                 solution.heading_sigma_deg * DEG, HANDOVER_SIGMA_FACTOR * ad.gnss.vel_std_mps,
+                 velocity_from_attitude=False, position_sigma_m=HANDOVER_SIGMA_FACTOR * ad.gnss.pos_std_m)
 
 
 def gnss_coarse_counters(p: AlignmentPipeline) -> dict[str, int]:
@@ -102,7 +102,7 @@ class Gnss(KalmanMode):
         p = self.p
         if not p.config.fine.enabled:
             return None
-        return ErrorStateFilter(p.grade, gnss_filter_measurements(p.config.aiding), p.config.aiding.gate_chi2)
+        return ErrorStateFilter(p.grade, gnss_filter_measurements(p.config.aiding), p.config.fine.kalman.gate_chi2)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The fix's velocity with the gyro rate (lever arm), and its position in rad / m."""

@@ -6,6 +6,7 @@ is at or below ``alignment.converged_heading_sigma_deg``.
 """
 from __future__ import annotations
 
+import functools
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -35,8 +36,8 @@ class KalmanMode:
     p99 2.3-2.55, max 2.84-3.07), and so they reach 3σ about once in a few thousand epochs. "Never converged beyond
     3σ" asks for a margin: 1.25 puts those tails at 2.3-2.5σ (docs/algorithms/transfer.md, "σ, as calibrated";
     docs/algorithms/gnss.md, "Slower receivers")."""
-    handover_limit_key = "handover_heading_sigma_deg"
-    """The ``[aiding]`` key of the largest coarse heading σ (deg) the Kalman stage starts from."""
+    handover_limit_key = "fine.kalman.handover_heading_sigma_deg"
+    """The configuration key (dotted) of the largest coarse heading σ (deg) the Kalman stage starts from."""
 
     def __init__(self, pipeline: AlignmentPipeline) -> None:
         self.p = pipeline
@@ -75,17 +76,17 @@ class KalmanMode:
     def handover_solution(self, t_end: float, q_b_b0: np.ndarray, notice: tuple[str, str] | None
                           ) -> AttitudeSolution | None:
         """The coarse solution at the step's end to start the filter from, or None while its heading σ is above
-        ``aiding.<handover_limit_key>``: a linear filter started several degrees off turns overconfident
+        ``handover_limit_key``: a linear filter started several degrees off turns overconfident
         (seed 003 at 20 m/s: a 4°-σ window left 3-5° errors at σ 0.3°). ``notice`` (what comes before and after
         "heading σ … > …") tells the operator once why the coarse stage goes on; None: nothing to tell."""
         p = self.p
         solution = p.coarse.solution_at(t_end, q_b_b0)
-        limit = getattr(p.config.aiding, self.handover_limit_key)
+        limit = functools.reduce(getattr, self.handover_limit_key.split("."), p.config)
         if solution.heading_sigma_deg <= limit:
             return solution
         if notice is not None:
             p.last_notice = p.last_notice or (f"{notice[0]}heading σ {solution.heading_sigma_deg:.2f}° > "
-                                              f"aiding.{self.handover_limit_key} {limit:g}°{notice[1]}")
+                                              f"{self.handover_limit_key} {limit:g}°{notice[1]}")
         return None
 
     def counters(self) -> dict[str, int]:

@@ -1,9 +1,9 @@
 """In motion with an odometer or DVL (seed 003): body velocity V^b (3 aiding values per sample, m/s).
 
 Observation source: body velocity at each observation over a bounded stored window, the multistage re-runs every
-``aiding.relevel_interval_s``. Fine stage: the error-state Kalman filter with body-velocity measurements (scale
+``aiding.odo.relevel_interval_s``. Fine stage: the error-state Kalman filter with body-velocity measurements (scale
 factor and lever arm as states if their priors are set), from the end of the window once its heading σ is within
-``aiding.handover_heading_sigma_deg``. No translation check: this base is meant to move.
+``fine.kalman.handover_heading_sigma_deg``. No translation check: this base is meant to move.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ HANDOVER_VELOCITY_SIGMA_FACTOR = 3.0
 def odometer_measurement(ad: AidingConfig) -> BodyVelocity:
     """The Kalman stage's body-velocity measurement (its scale factor and lever arm as states if their priors are
     set)."""
-    return BodyVelocity(ad.odo_std_mps, np.array(ad.odo_lever_m), ad.odo_scale_sigma, ad.odo_lever_sigma_m)
+    return BodyVelocity(ad.odo.vel_std_mps, np.array(ad.odo.lever_m), ad.odo.scale_sigma, ad.odo.lever_sigma_m)
 
 
 class Odometer(KalmanMode):
@@ -38,19 +38,19 @@ class Odometer(KalmanMode):
     def make_coarse(self) -> InertialCoarseAlignment:
         p = self.p
         a, ad = p.config.alignment, p.config.aiding
-        priors = {"acc_bias_sigma_ms2": p.grade.acc_bias_ms2, "odo_scale_sigma": ad.odo_scale_sigma,
-                  "odo_lever_m": np.array(ad.odo_lever_m), "odo_lever_sigma_m": ad.odo_lever_sigma_m}
-        source = VelocityAidedSource(p.site, ad.window_s, a.obs_interval_s, ad.levels, ad.solver, priors)
-        self._next_relevel_s = ad.relevel_interval_s
+        priors = {"acc_bias_sigma_ms2": p.grade.acc_bias_ms2, "odo_scale_sigma": ad.odo.scale_sigma,
+                  "odo_lever_m": np.array(ad.odo.lever_m), "odo_lever_sigma_m": ad.odo.lever_sigma_m}
+        source = VelocityAidedSource(p.site, ad.odo.window_s, a.obs_interval_s, ad.odo.levels, ad.odo.solver, priors)
+        self._next_relevel_s = ad.odo.relevel_interval_s
         self._window_solved = False
-        return MultistageCoarseAlignment(source, p.grade, make_solver(ad.solver, a.request_rho),
+        return MultistageCoarseAlignment(source, p.grade, make_solver(ad.odo.solver, a.request_rho),
                                          p.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
 
     def make_fine(self) -> ErrorStateFilter | None:
         p = self.p
         if not p.config.fine.enabled:
             return None
-        return ErrorStateFilter(p.grade, [odometer_measurement(p.config.aiding)], p.config.aiding.gate_chi2)
+        return ErrorStateFilter(p.grade, [odometer_measurement(p.config.aiding)], p.config.fine.kalman.gate_chi2)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         return [("odo", "odo", aid)]
@@ -68,13 +68,13 @@ class Odometer(KalmanMode):
         # the levels run one per control step (a re-run of the full window costs tens of ms at once)
         due = elapsed_s + 1e-9 >= self._next_relevel_s or source.window_full(elapsed_s)
         if not source.relevelling and not self._window_solved and due and p.coarse.start_relevel(elapsed_s):
-            self._next_relevel_s = elapsed_s + p.config.aiding.relevel_interval_s
+            self._next_relevel_s = elapsed_s + p.config.aiding.odo.relevel_interval_s
         if source.relevelling and source.step_relevel(1):
             self._window_solved = source.relevel_window_full
         if p.fine is not None and self._window_solved and aided:
             # the window is all there is: above the limit the coarse stage stays
-            solution = self.handover_solution(t_end, q_b_b0, (f"the {p.config.aiding.window_s:g}-s window gives ",
-                                                              ": no fine stage; lengthen aiding.window_s"))
+            solution = self.handover_solution(t_end, q_b_b0, (f"the {p.config.aiding.odo.window_s:g}-s window gives ",
+                                                              ": no fine stage; lengthen aiding.odo.window_s"))
             if solution is None:
                 return
             C_b_n = dcm_from_quat(solution.q_b_n)

@@ -4,8 +4,8 @@ velocity V^b (3) per sample, the gyro rate appended for the lever arms.
 Coarse stage: the GNSS one (service/modes/gnss.py) with a second pair per fix, the odometer's V^b against the fix's
 V^n: one velocity in two frames (:class:`~service.align.gnss_aided.BodyVelocityPairs`). They hold the heading from
 the first fixes on, where velocity integration alone waits for accelerations and the odometer's window for its full
-length. Fine stage, from ``aiding.gnss_handover_s`` on once the coarse heading σ is within
-``aiding.handover_heading_sigma_deg``: the error-state Kalman filter with all three measurements, the odometer's
+length. Fine stage, from ``aiding.gnss.handover_s`` on once the coarse heading σ is within
+``fine.kalman.handover_heading_sigma_deg``: the error-state Kalman filter with all three measurements, the odometer's
 body velocity (its scale factor and lever arm as states if their priors are set), the GNSS velocity and position.
 Through a GNSS outage the filter goes on with the odometer (the velocity error stays bounded, the heading holds on
 the gyros); the fixes rejoin through the χ² gate.
@@ -35,7 +35,7 @@ class OdometerGnss(KalmanMode):
     def make_coarse(self) -> InertialCoarseAlignment:
         ad = self.p.config.aiding
         coarse = gnss_coarse(self.p, rate_column=RATE_COLUMN)
-        coarse.body_velocity = BodyVelocityPairs(GNSS_COLUMNS, np.array(ad.odo_lever_m), ad.odo_std_mps)
+        coarse.body_velocity = BodyVelocityPairs(GNSS_COLUMNS, np.array(ad.odo.lever_m), ad.odo.vel_std_mps)
         return coarse
 
     def make_fine(self) -> ErrorStateFilter | None:
@@ -43,7 +43,8 @@ class OdometerGnss(KalmanMode):
         if not p.config.fine.enabled:
             return None
         ad = p.config.aiding
-        return ErrorStateFilter(p.grade, [odometer_measurement(ad), *gnss_filter_measurements(ad)], ad.gate_chi2)
+        return ErrorStateFilter(p.grade, [odometer_measurement(ad), *gnss_filter_measurements(ad)],
+                                p.config.fine.kalman.gate_chi2)
 
     @staticmethod
     def _split(aid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -5,8 +5,8 @@ Phase 1 (``coarse``) is the inertial-frame stage with the master source (service
 attitude pairs r = M b solved in closed form for the mounting M = C_bs^bm, whatever its size. Phase 2 (``fine`` →
 ``aligned``) is the error-state Kalman filter with velocity matching (the master's velocity, with the lever arm as
 states) and attitude matching (the mounting as states), from the first control step at which phase 1's σ is within
-``aiding.master_handover_sigma_deg``, or within ``aiding.master_linear_sigma_deg`` (the filter's linear range) and
-no longer improving (a MEMS slave), or at ``aiding.master_handover_s`` (the seed's fixed 10 s). The slave's attitude
+``aiding.master.handover_sigma_deg``, or within ``aiding.master.linear_sigma_deg`` (the filter's linear range) and
+no longer improving (a MEMS slave), or at ``aiding.master.handover_s`` (the seed's fixed 10 s). The slave's attitude
 is the output; every record carries the mounting with its σ (:meth:`Transfer.mounting`).
 """
 from __future__ import annotations
@@ -32,17 +32,17 @@ class Transfer(KalmanMode):
     aids = (("master", MASTER_COLUMNS),)
     coarse_kind = "master"
     gyro_rate = True
-    handover_limit_key = "master_linear_sigma_deg"
+    handover_limit_key = "aiding.master.linear_sigma_deg"
 
     def make_coarse(self) -> InertialCoarseAlignment:
         p = self.p
         a, ad = p.config.alignment, p.config.aiding
-        source = MasterSource(p.site, ad.master_att_std_deg * DEG, ad.master_vel_std_mps, p.grade.gyro_bias_rad_s,
-                              p.grade.acc_bias_ms2, np.array(ad.master_lever_m))
+        source = MasterSource(p.site, ad.master.att_std_deg * DEG, ad.master.vel_std_mps, p.grade.gyro_bias_rad_s,
+                              p.grade.acc_bias_ms2, np.array(ad.master.lever_m))
         coarse = MasterCoarseAlignment(source, p.grade, GroupedWahba(2), p.sample_period_s, a.obs_interval_s,
                                        a.disturbance_velocity_mps)
-        if ad.master_mount_deg:
-            coarse.nominal = (dcm_from_euler(*(np.array(ad.master_mount_deg) * DEG)), ad.master_mount_sigma_deg * DEG)
+        if ad.master.mount_deg:
+            coarse.nominal = (dcm_from_euler(*(np.array(ad.master.mount_deg) * DEG)), ad.master.mount_sigma_deg * DEG)
         return coarse
 
     def make_fine(self) -> ErrorStateFilter | None:
@@ -50,9 +50,10 @@ class Transfer(KalmanMode):
         if not p.config.fine.enabled:
             return None
         ad = p.config.aiding
-        velocity = (LeverVelocity(ad.master_vel_std_mps, lever_sigma_m=ad.master_lever_sigma_m, name="master_vel")
-                    if ad.master_lever_sigma_m > 0.0 else GnssVelocity(ad.master_vel_std_mps, name="master_vel"))
-        return ErrorStateFilter(p.grade, [velocity, MasterAttitude(ad.master_att_std_deg * DEG)], ad.gate_chi2)
+        velocity = (LeverVelocity(ad.master.vel_std_mps, lever_sigma_m=ad.master.lever_sigma_m, name="master_vel")
+                    if ad.master.lever_sigma_m > 0.0 else GnssVelocity(ad.master.vel_std_mps, name="master_vel"))
+        return ErrorStateFilter(p.grade, [velocity, MasterAttitude(ad.master.att_std_deg * DEG)],
+                                p.config.fine.kalman.gate_chi2)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The master's velocity with the slave's gyro rate, and its attitude quaternion."""
@@ -71,8 +72,8 @@ class Transfer(KalmanMode):
         if noise is None:
             return
         # the switch looks at the fit's noise alone (the bias floor stays until the Kalman stage separates it)
-        due = elapsed_s + 1e-9 >= ad.master_handover_s if ad.master_handover_s > 0.0 else p.coarse.done(
-            max(noise), elapsed_s, ad.master_handover_sigma_deg * DEG, ad.master_linear_sigma_deg * DEG)
+        due = elapsed_s + 1e-9 >= ad.master.handover_s if ad.master.handover_s > 0.0 else p.coarse.done(
+            max(noise), elapsed_s, ad.master.handover_sigma_deg * DEG, ad.master.linear_sigma_deg * DEG)
         solution = self.handover_solution(t_end, q_b_b0, None) if due else None
         if solution is None:
             return
@@ -80,13 +81,13 @@ class Transfer(KalmanMode):
         attitude.M_ref = p.coarse.mounting
         # the master's point from the slave, in the slave's axes: its velocity is what the master reports
         velocity: GnssVelocity = p.fine.measurements["master_vel"]
-        velocity.lever_b = -attitude.M_ref.T @ np.array(ad.master_lever_m)
+        velocity.lever_b = -attitude.M_ref.T @ np.array(ad.master.lever_m)
         heading_rad, level_rad = solution.heading_sigma_deg * DEG, solution.level_sigma_deg * DEG
         C_b_n = dcm_from_quat(aid[:4]) @ attitude.M_ref         # the master's attitude now, through the mounting
         position = np.r_[np.radians(aid[7:9]), aid[9]]
         V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], velocity.lever_b)
         p.fine.start(C_b_n, C_b_b0, V_n, position, level_rad, heading_rad,
-                     HANDOVER_SIGMA_FACTOR * ad.master_vel_std_mps, velocity_from_attitude=False)
+                     HANDOVER_SIGMA_FACTOR * ad.master.vel_std_mps, velocity_from_attitude=False)
         # the φ, μ and ∇ prior: it replaces start's diagonal one
         correlate_handover(p.fine, C_b_n, *noise, p.grade, p.site.gravity)
 

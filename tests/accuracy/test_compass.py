@@ -24,7 +24,7 @@ SEEDS = range(8)
 """The default set's seeds; the 20-seed figures run under -m slow."""
 SEEDS_SLOW = range(20)
 COMPASS_START_DEG = (0.1, 0.1, 1.5)
-NO_STORE = {"fine": {"stored_pairs": 0}}
+NO_STORE = {"fine": {"compass": {"stored_pairs": 0}}}
 
 
 def loops_at(level_sigma: float, azimuth_sigma: float) -> CompassLoops:
@@ -64,12 +64,13 @@ def test_schedule_interpolates_geometrically_and_switches_the_azimuth_loop_on_on
 
 
 def test_schedule_errors_name_the_configuration_key():
-    with pytest.raises(ConfigError, match=r"^fine\.schedule"):
-        config_from_mapping({"fine": {"schedule_time_s": [0, 10], "level_sigma": [0.1], "azimuth_sigma": [0, 1]}})
-    with pytest.raises(ConfigError, match=r"^fine\.level_sigma: expected a list of numbers"):
-        config_from_mapping({"fine": {"level_sigma": "fast"}})
-    with pytest.raises(ConfigError, match=r"^fine\.handover"):
-        config_from_mapping({"fine": {"handover": "never"}})
+    with pytest.raises(ConfigError, match=r"^fine\.compass\.schedule_time_s, level_sigma, azimuth_sigma: time_s"):
+        config_from_mapping({"fine": {"compass": {"schedule_time_s": [0, 10], "level_sigma": [0.1],
+                                                  "azimuth_sigma": [0, 1]}}})
+    with pytest.raises(ConfigError, match=r"^fine\.compass\.level_sigma: expected a list of numbers"):
+        config_from_mapping({"fine": {"compass": {"level_sigma": "fast"}}})
+    with pytest.raises(ConfigError, match=r"^fine\.compass\.handover"):
+        config_from_mapping({"fine": {"compass": {"handover": "never"}}})
 
 
 def test_noise_free_stored_passes_converge_where_plain_forward_running_has_not():
@@ -181,13 +182,13 @@ def test_live_slices_and_offline_give_bit_identical_results_after_the_passes():
     assert len(differs) == 0 or got[differs[0]].t >= 80.0
     # ... and once they are done it gives, bit for bit, what the offline replay gives
     assert len(differs) == 0 or (got[differs[-1]].t < 100.0 and same[differs[-1] + 1:].all())
-    steps = 2 * Config().fine.stored_pairs * live.fine.buffer.capacity
-    assert 0 < queued <= steps // Config().fine.live_pass_steps + 1
+    steps = 2 * Config().fine.compass.stored_pairs * live.fine.buffer.capacity
+    assert 0 < queued <= steps // Config().fine.compass.live_pass_steps + 1
 
 
 def test_the_store_is_bounded_by_its_configuration():
     scenario = get_scenario("seed001-static")
-    config = config_from_mapping({"fine": {"stored_data_s": 30.0, "control_interval_s": 0.05}})
+    config = config_from_mapping({"fine": {"compass": {"stored_data_s": 30.0}, "control_interval_s": 0.05}})
     pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet())
     for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 60.0, 1):
         pipeline.process(chunk.t, chunk.dtheta, chunk.dv)
@@ -210,8 +211,8 @@ def first_fine_s(pipeline: AlignmentPipeline, chunk) -> tuple[float, list]:
 @pytest.mark.parametrize("pipeline_class", [_UncheckedNoise, AlignmentPipeline])
 def test_a_datasheet_claiming_an_ideal_sensor_cannot_hand_over_before_the_heading_is_known(pipeline_class):
     """GIVEN noisy seed-001 data but a datasheet of zeros (σ ≈ 0 from the first observation), THEN the loops start
-    no earlier than fine.handover_min_s (10 s), from a coarse heading within a few degrees, and pull it in to the
-    limit (without the guard they started at 0.1 s and stayed 250° off). With the noise meter (the default) σ
+    no earlier than fine.compass.handover_min_s (10 s), from a coarse heading within a few degrees, and pull it in to
+    the limit (without the guard they started at 0.1 s and stayed 250° off). With the noise meter (the default) σ
     takes the data's own noise and the hand-over comes no earlier than an honest datasheet's (55 s; 67 s with the
     zeros, whose bias part is 0), said in a notice."""
     from sinsalign.service.align.conventions import dcm_from_quat, misalignment

@@ -42,7 +42,7 @@ def test_a_mems_slave_hands_over_and_aligns_within_a_tenth_of_a_degree():
 
 def test_without_the_lever_arm_states_the_unknown_lever_arm_tilts_the_estimate():
     """The test above can fail: the same seeds with the lever arm taken as configured (zero) miss the level."""
-    runs = monte_carlo("transfer-mems", [0, 1], {"aiding": {"master_lever_sigma_m": 0.0}}, progress=False)
+    runs = monte_carlo("transfer-mems", [0, 1], {"aiding": {"master": {"lever_sigma_m": 0.0}}}, progress=False)
     assert max(np.abs(r.phi_deg[r.t > SETTLED_FROM_S]).max() for r in runs) > 0.1
 
 

@@ -111,7 +111,7 @@ def test_demo_of_a_vehicle_with_odometer_and_gnss_plays_both_streams_and_the_dae
     c = result.counters
     assert (c["odo_epochs"], c["gnss_epochs"], c["samples_used"], c["frames"]) == (3000, 300, 3000, 6300)
     assert messages.faults(c) == {} and c["gnss_unaided_observations"] == 0
-    assert c["odo_accepted"] == 0 and c["gnss_vel_accepted"] == 0   # the filter starts at aiding.gnss_handover_s
+    assert c["odo_accepted"] == 0 and c["gnss_vel_accepted"] == 0   # the filter starts at aiding.gnss.handover_s
     assert abs(result.phi_deg[-1, 2]) < 0.05
     offline = run_once(seed_run("seed003-odo-gnss", 1, 30.0), 1, config_from_mapping({}), live=True)
     assert np.allclose(result.phi_deg, offline.phi_deg[:len(result.t)], atol=1e-4)

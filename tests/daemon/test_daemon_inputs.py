@@ -265,8 +265,8 @@ def fly_with_gnss(tmp_path: Path, pty_pair: PtyPair, running, transport: str,
     lever_b = scenario.gnss.lever_b
     records, counters, config = run_aided(tmp_path, pty_pair, running, scenario, "gnss", epochs, GNSS_SECONDS,
                                           GNSS_SPEED, GNSS_LATE_S, transport,
-                                          {"gnss_lever_m": list(lever_b), "max_wait_s": 10.0,
-                                           "gnss_handover_s": handover_s})
+                                          {"gnss": {"lever_m": list(lever_b), "handover_s": handover_s},
+                                           "max_wait_s": 10.0})
     assert messages.faults(counters) == {}
     write_gnss_log(tmp_path / "gnss.csv", epochs, lever_b)
     assert_same_as_replay(records, tmp_path / "recorded.csv", tmp_path, config, {"gnss": str(tmp_path / "gnss.csv")})
@@ -284,7 +284,7 @@ def test_the_daemon_aligns_a_flight_with_gnss_fixes_arriving_late(tmp_path, pty_
     """GNSS fixes late on …/aid/gnss or as serial aiding frames: the samples wait for their fixes, the records
     equal the offline replay with the GNSS log, and the heading is right against the truth early (only with
     the lever arm compensated) and late (only with the columns in their order)."""
-    # gnss_handover_s beyond the run: the VIF coarse stage alone, whatever the Kalman stage's default
+    # aiding.gnss.handover_s beyond the run: the VIF coarse stage alone, whatever the Kalman stage's default
     records, counters, scenario = fly_with_gnss(tmp_path, pty_pair, running, transport, handover_s=60.0)
     assert counters["gnss_vel_accepted"] == counters["gnss_pos_accepted"] == 0
     t, phi = attitude_errors_deg(scenario, records)
@@ -317,7 +317,7 @@ def test_the_daemon_takes_a_1_hz_receiver_one_fix_at_a_time_without_faults(tmp_p
     epochs = gnss_epochs(scenario, 1)[:round(GNSS_SECONDS)]
     records, counters, config = run_aided(tmp_path, pty_pair, running, scenario, "gnss", epochs, GNSS_SECONDS,
                                           GNSS_SPEED, 0.3, "serial",
-                                          {"gnss_lever_m": list(scenario.gnss.lever_b), "gnss_handover_s": 12.0})
+                                          {"gnss": {"lever_m": list(scenario.gnss.lever_b), "handover_s": 12.0}})
     assert messages.faults(counters) == {} and counters["gnss_observations_awaiting_aid"] == 9
     fixes_in_kalman_stage = int((epochs[:, 0] > 12.0).sum())
     assert counters["gnss_vel_accepted"] + counters.get("gnss_vel_rejected", 0) == fixes_in_kalman_stage
@@ -502,8 +502,8 @@ def test_a_burst_of_gnss_glitches_in_the_kalman_stage_raises_the_screening_alarm
         return started[-1]
 
     records, counters, _ = run_aided(tmp_path, pty_pair, start, scenario, "gnss", epochs, GNSS_SECONDS, GNSS_SPEED,
-                                     GNSS_LATE_S, "serial", {"gnss_lever_m": list(scenario.gnss.lever_b),
-                                                             "max_wait_s": 10.0, "gnss_handover_s": 12.0})
+                                     GNSS_LATE_S, "serial", {"gnss": {"lever_m": list(scenario.gnss.lever_b),
+                                                                      "handover_s": 12.0}, "max_wait_s": 10.0})
     assert counters["gnss_vel_rejected"] >= 10 and counters["gnss_pos_rejected"] >= 10
     assert messages.faults(counters) == {}
     assert "degraded" in [s["health"] for s in started[0].subscriber.status]
@@ -524,8 +524,8 @@ def test_the_daemon_aligns_a_slave_imu_against_a_master_ins_arriving_late(tmp_pa
     assert len(epochs) == 150
     records, counters, config = run_aided(tmp_path, pty_pair, running, scenario, "master", epochs, MASTER_SECONDS,
                                           MASTER_SPEED, MASTER_LATE_S, transport,
-                                          {"max_wait_s": 10.0, "master_att_std_deg": master.att_noise_deg,
-                                           "master_vel_std_mps": master.vel_noise_mps})
+                                          {"max_wait_s": 10.0, "master": {"att_std_deg": master.att_noise_deg,
+                                                                          "vel_std_mps": master.vel_noise_mps}})
     # the track's and the estimators' counters are in the status; phase 2's matching counts as work
     assert {f"master_{name}" for name in ("repeats", "out_of_order", "non_finite", "gaps", "unaided_queries",
                                           "unaided_observations", "vel_accepted", "vel_rejected", "att_accepted",

@@ -27,13 +27,13 @@ from sinsalign.tools.sim.scenarios import get_scenario
 from support.aided_runs import errors_deg, process_simulation
 
 
-def run_gnss(scenario, seed=1, lever=True, piece=None, aiding=None, faults=None, counters=None, config=None):
-    """Records of the GNSS pipeline over a simulated seed (lever arm configured or not, other ``aiding``
-    keys and ``config`` sections, GNSS ``faults`` of :func:`with_gnss_faults`); ``counters`` (a dict)
+def run_gnss(scenario, seed=1, lever=True, piece=None, gnss=None, faults=None, counters=None, config=None):
+    """Records of the GNSS pipeline over a simulated seed (lever arm configured or not, other ``[aiding.gnss]``
+    keys ``gnss`` and ``config`` sections, GNSS ``faults`` of :func:`with_gnss_faults`); ``counters`` (a dict)
     receives the pipeline's."""
     scenario = scenario.for_seed(seed)
     lever_m = list(scenario.gnss.lever_b) if lever else [0.0, 0.0, 0.0]
-    mapping = {**(config or {}), "aiding": {"gnss_lever_m": lever_m, **(aiding or {})}}
+    mapping = {**(config or {}), "aiding": {"gnss": {"lever_m": lever_m, **(gnss or {})}}}
     pipeline = build_pipeline(config_from_mapping(mapping), scenario.site, scenario.rate_hz,
                               scenario.grade.datasheet(), ["gnss"])
     epochs = with_gnss_faults(gnss_epochs(scenario, seed), **(faults or {}))
@@ -61,7 +61,7 @@ def test_exact_sensors_give_the_exact_heading_from_10_s_with_the_lever_arm_compe
 
 def test_exact_sensors_stay_exact_through_the_kalman_stage_with_velocity_and_position_fixes():
     scenario = replace(get_scenario("seed004-ideal"), duration_s=40.0)
-    records = run_gnss(scenario, aiding={"gnss_handover_s": 15.0})
+    records = run_gnss(scenario, gnss={"handover_s": 15.0})
     t, phi = errors_deg(scenario, records)
     late = [r.phase for r, t_s in zip(records, t, strict=True) if t_s > 15.0]
     assert late == ["aligned"] * len(late) and records[0].phase == "coarse"          # the filter from 15 s
@@ -70,9 +70,9 @@ def test_exact_sensors_stay_exact_through_the_kalman_stage_with_velocity_and_pos
 
 def test_the_position_formula_aligns_from_positions_alone_and_needs_the_lever_arm_too():
     scenario = replace(get_scenario("seed004-ideal"), duration_s=40.0)
-    pif = {"gnss_formula": "pif", "gnss_handover_s": 3600.0}
-    t, compensated = errors_deg(scenario, run_gnss(scenario, aiding=pif))
-    _, ignored = errors_deg(scenario, run_gnss(scenario, lever=False, aiding=pif))
+    pif = {"formula": "pif", "handover_s": 3600.0}
+    t, compensated = errors_deg(scenario, run_gnss(scenario, gnss=pif))
+    _, ignored = errors_deg(scenario, run_gnss(scenario, lever=False, gnss=pif))
     assert np.abs(compensated[t >= 10.0]).max() < 0.001
     assert np.abs(ignored[t >= 30.0, 2]).max() > 0.01
 
@@ -87,7 +87,7 @@ def test_exact_sensors_stay_exact_across_a_gap_in_the_fixes_in_either_formula():
     scenario = replace(get_scenario("seed004-ideal"), duration_s=60.0)
     for formula, gap_s in (("vif", 10.0), ("pif", 5.0)):
         counters = {}
-        records = run_gnss(scenario, aiding={"gnss_formula": formula, "gnss_handover_s": 3600.0},
+        records = run_gnss(scenario, gnss={"formula": formula, "handover_s": 3600.0},
                            faults={"outage_s": (20.0, 20.0 + gap_s)}, counters=counters)
         t, phi = errors_deg(scenario, records)
         assert counters["gnss_coarse_rejected"] == 0 and counters["gnss_unaided_observations"] == 10 * gap_s
@@ -102,7 +102,7 @@ def test_observations_before_the_first_fix_await_it_and_those_in_a_later_outage_
     dropout, counted as unaided (a fault); the pipeline awaits the aid until the first fix, not after."""
     scenario = replace(get_scenario("seed004-ideal"), duration_s=30.0)
     awaiting = []
-    config = config_from_mapping({"aiding": {"gnss_lever_m": list(scenario.gnss.lever_b)}})
+    config = config_from_mapping({"aiding": {"gnss": {"lever_m": list(scenario.gnss.lever_b)}}})
     pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["gnss"])
     epochs = gnss_epochs(scenario.for_seed(1), 1)
     feed = AidingFeed(AidingTrack.for_kind("gnss"), iter([with_gnss_faults(epochs[epochs[:, 0] >= 3.0],
@@ -124,7 +124,8 @@ def test_a_record_before_the_first_fix_does_not_depend_on_whether_the_fix_has_co
     0.6 s before the fix had come (live, the daemon's wait over) or all at once with the fixes (a replay). The
     navigation frame before the first fix is the start's, not the fix's carried back (it was 2.5e-5 rad off)."""
     scenario = replace(get_scenario("seed004-ideal").with_aid_rate(1.0), duration_s=3.0)
-    config = config_from_mapping({"aiding": {"gnss_lever_m": list(scenario.gnss.lever_b)}, "output": {"period_s": 0.5}})
+    config = config_from_mapping({"aiding": {"gnss": {"lever_m": list(scenario.gnss.lever_b)}},
+                                  "output": {"period_s": 0.5}})
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, 1)
     epochs = gnss_epochs(scenario.for_seed(1), 1)
     records = {}
@@ -148,7 +149,7 @@ def test_a_record_before_the_first_fix_does_not_depend_on_whether_the_fix_has_co
 def test_the_first_fix_error_does_not_pin_the_position_formula():
     """PIF subtracts the first fix, whose error e₀ enters as −e₀/T: the drift term takes it (2 m off: < 0.001°)."""
     scenario = replace(get_scenario("seed004-ideal"), duration_s=30.0)
-    records = run_gnss(scenario, aiding={"gnss_formula": "pif", "gnss_handover_s": 3600.0},
+    records = run_gnss(scenario, gnss={"formula": "pif", "handover_s": 3600.0},
                        faults={"glitches": ((0.0, 0.021, 0.0, 2.0),)})
     t, phi = errors_deg(scenario, records)
     assert np.abs(phi[t >= 10.0]).max() < 0.001
@@ -186,10 +187,10 @@ def test_a_1_hz_receivers_glitch_in_its_fifth_fix_is_screened_out(formula):
     20 pairs, before) the heading was 26° off at 10 s and 2.0° at 30 s with VIF, 35° at 10 s with PIF; screened it
     stays within 0.25 σ of the clean run's from 10 s."""
     scenario = replace(get_scenario("seed004").with_aid_rate(1.0), duration_s=30.0)
-    aiding = {"gnss_formula": formula, "gnss_handover_s": 3600.0}
+    aiding = {"formula": formula, "handover_s": 3600.0}
     counters, clean_counters = {}, {}
-    records = run_gnss(scenario, aiding=aiding, faults={"glitches": ((5.0, 1.0, 20.0, 50.0),)}, counters=counters)
-    clean = run_gnss(scenario, aiding=aiding, counters=clean_counters)
+    records = run_gnss(scenario, gnss=aiding, faults={"glitches": ((5.0, 1.0, 20.0, 50.0),)}, counters=counters)
+    clean = run_gnss(scenario, gnss=aiding, counters=clean_counters)
     assert counters["gnss_coarse_rejected"] == 1 and clean_counters["gnss_coarse_rejected"] == 0
     t, phi = errors_deg(scenario.for_seed(1), records)
     _, phi_clean = errors_deg(scenario.for_seed(1), clean)
@@ -211,10 +212,10 @@ def test_a_stream_one_sample_at_a_time_gives_the_same_bits_as_one_chunk_through_
     pairs due; the Kalman stage starts at 5 s with VIF (PIF's heading σ is still above the hand-over gate)."""
     scenario = replace(get_scenario("seed004"), duration_s=8.0)
     for formula in ("vif", "pif"):
-        overrides = {"gnss_formula": formula, "gnss_handover_s": 5.0}
+        overrides = {"formula": formula, "handover_s": 5.0}
         config = {"output": {"period_s": 0.25}, "alignment": {"obs_interval_s": 0.05}}
-        whole = run_gnss(scenario, aiding=overrides, config=config)
-        pieces = run_gnss(scenario, piece=1, aiding=overrides, config=config)
+        whole = run_gnss(scenario, gnss=overrides, config=config)
+        pieces = run_gnss(scenario, piece=1, gnss=overrides, config=config)
         assert len(whole) == 32 and (whole[-1].phase in ("fine", "aligned")) == (formula == "vif")
         assert [r.to_json() for r in whole] == [r.to_json() for r in pieces], formula
 
@@ -280,9 +281,9 @@ def test_a_gnss_log_states_its_lever_arm_and_noise_over_the_configuration(tmp_pa
     from sinsalign.tools.sim.aiding import write_gnss_log
     scenario = get_scenario("seed004")
     path = write_gnss_log(tmp_path / "gnss.csv", gnss_epochs(scenario, 1)[:10], np.array([0.5, -1.0, 2.0]), 0.05, 3.0)
-    config, _ = open_aids({"gnss": str(path)}, config_from_mapping({"aiding": {"gnss_lever_m": [9.0, 9.0, 9.0]}}))
+    config, _ = open_aids({"gnss": str(path)}, config_from_mapping({"aiding": {"gnss": {"lever_m": [9.0, 9.0, 9.0]}}}))
     ad = config.aiding
-    assert (ad.gnss_lever_m, ad.gnss_vel_std_mps, ad.gnss_pos_std_m) == ((0.5, -1.0, 2.0), 0.05, 3.0)
+    assert (ad.gnss.lever_m, ad.gnss.vel_std_mps, ad.gnss.pos_std_m) == ((0.5, -1.0, 2.0), 0.05, 3.0)
 
 
 def test_a_flight_across_the_antimeridian_stays_exact_through_both_stages():
@@ -296,7 +297,7 @@ def test_a_flight_across_the_antimeridian_stays_exact_through_both_stages():
     crossing = fixes[np.flatnonzero(fixes[:, 2] < 0.0)[0], 0]
     assert 15.0 < crossing < 35.0
     counters = {}
-    records = run_gnss(scenario, aiding={"gnss_handover_s": 15.0}, counters=counters)
+    records = run_gnss(scenario, gnss={"handover_s": 15.0}, counters=counters)
     t, phi = errors_deg(scenario, records)
     assert np.abs(phi[t >= 10.0]).max() < 0.001
     assert counters["gnss_pos_rejected"] == counters["gnss_vel_rejected"] == 0 and counters["gnss_pos_accepted"] > 0
@@ -308,7 +309,7 @@ def test_a_5_hz_receiver_gives_one_observation_and_one_update_per_fix_and_stays_
     position update per fix, and the heading is exact from 10 s on."""
     scenario = replace(get_scenario("seed004-ideal").with_aid_rate(5.0), duration_s=40.0)
     counters = {}
-    records = run_gnss(scenario, aiding={"gnss_handover_s": 20.0}, counters=counters)
+    records = run_gnss(scenario, gnss={"handover_s": 20.0}, counters=counters)
     n_obs = {r.t: r.n_obs for r in records}
     assert (n_obs[10.0], n_obs[20.0], n_obs[40.0]) == (50, 100, 200)
     assert counters["gnss_vel_accepted"] == counters["gnss_pos_accepted"] == 100      # the fixes of (20 s, 40 s]

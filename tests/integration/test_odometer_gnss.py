@@ -32,8 +32,9 @@ def run_both(scenario, seed=1, piece=None, aiding=None, config=None, outage_s=No
     ``aiding`` says otherwise; samples ``piece`` at a time (None: a chunk at once)."""
     scenario = scenario.for_seed(seed)
     aids = {aid.kind: aid for aid in scenario_aids(scenario, seed)}
-    mapping = {**(config or {}), "aiding": {"gnss_lever_m": list(scenario.gnss.lever_b),
-                                            "odo_lever_m": list(scenario.odometer.lever_b), **(aiding or {})}}
+    aiding = {"gnss": {"lever_m": list(scenario.gnss.lever_b), **(aiding or {}).get("gnss", {})},
+              "odo": {"lever_m": list(scenario.odometer.lever_b), **(aiding or {}).get("odo", {})}}
+    mapping = {**(config or {}), "aiding": aiding}
     pipeline = build_pipeline(config_from_mapping(mapping), scenario.site, scenario.rate_hz,
                               scenario.grade.datasheet(), ["odo", "gnss"])
     gnss = with_gnss_faults(aids["gnss"].epochs, outage_s=outage_s)
@@ -67,19 +68,19 @@ def test_exact_sensors_give_the_exact_heading_within_seconds_with_both_lever_arm
     """The velocity pairs hold the heading from the first fixes (VIF alone needs the drive's accelerations: tens of
     degrees off before its first turn); both lever arms matter: the antenna's 1 m and the wheel's 1.4 m."""
     scenario = ideal(40.0)
-    records, pipeline = run_both(scenario, aiding={"gnss_handover_s": 20.0})
+    records, pipeline = run_both(scenario, aiding={"gnss": {"handover_s": 20.0}})
     t, phi = errors_deg(scenario, records)
     assert np.abs(phi[t >= 2.0]).max() < 0.001
     assert [r.phase for r in records][-1] == "aligned" and records[10].phase == "coarse"
     counters = pipeline.aiding_counters()
     assert counters["odo_accepted"] > 150 and counters["gnss_vel_accepted"] > 150   # 20 s of 10-Hz updates each
-    _, wrong_wheel = errors_deg(scenario, run_both(scenario, aiding={"odo_lever_m": [0.0, 0.0, 0.0]})[0])
-    _, wrong_antenna = errors_deg(scenario, run_both(scenario, aiding={"gnss_lever_m": [0.0, 0.0, 0.0]})[0])
+    _, wrong_wheel = errors_deg(scenario, run_both(scenario, aiding={"odo": {"lever_m": [0.0, 0.0, 0.0]}})[0])
+    _, wrong_antenna = errors_deg(scenario, run_both(scenario, aiding={"gnss": {"lever_m": [0.0, 0.0, 0.0]}})[0])
     assert np.abs(wrong_wheel[t >= 2.0, 2]).max() > 0.004 and np.abs(wrong_antenna[t >= 2.0, 2]).max() > 0.004
 
 
 def test_each_fix_gives_a_velocity_integration_pair_and_a_velocity_pair():
-    records, pipeline = run_both(ideal(5.0), aiding={"gnss_handover_s": 100.0})
+    records, pipeline = run_both(ideal(5.0), aiding={"gnss": {"handover_s": 100.0}})
     assert records[-1].n_obs == 2 * 50 and pipeline.coarse.solver.rejected == 0   # 50 fixes in 5 s, none screened
 
 
@@ -88,9 +89,9 @@ def test_a_stream_one_sample_at_a_time_gives_the_same_bits_as_one_chunk_through_
     starts at 3 s and takes the odometer's and the receiver's epochs at their own rates."""
     scenario = replace(get_scenario("seed003-odo-gnss"), duration_s=6.0)
     config = {"output": {"period_s": 0.25}}
-    whole, _ = run_both(scenario, aiding={"gnss_handover_s": 3.0}, config=config)
-    pieces, _ = run_both(scenario, piece=1, aiding={"gnss_handover_s": 3.0}, config=config)
-    odd, _ = run_both(scenario, piece=37, aiding={"gnss_handover_s": 3.0}, config=config)
+    whole, _ = run_both(scenario, aiding={"gnss": {"handover_s": 3.0}}, config=config)
+    pieces, _ = run_both(scenario, piece=1, aiding={"gnss": {"handover_s": 3.0}}, config=config)
+    odd, _ = run_both(scenario, piece=37, aiding={"gnss": {"handover_s": 3.0}}, config=config)
     assert len(whole) == 24 and whole[-1].phase in ("fine", "aligned")
     assert [r.to_json() for r in whole] == [r.to_json() for r in pieces] == [r.to_json() for r in odd]
 
@@ -110,8 +111,8 @@ def test_an_odometer_log_and_a_gnss_log_replay_to_the_bits_of_the_run_in_memory(
 
 def test_a_gnss_outage_in_the_filter_is_carried_by_the_odometer_and_sigma_stops_shrinking():
     scenario = replace(get_scenario("seed003-odo-gnss"), duration_s=70.0)
-    clean_records, clean = run_both(scenario, aiding={"gnss_handover_s": 20.0})
-    records, pipeline = run_both(scenario, aiding={"gnss_handover_s": 20.0}, outage_s=(40.0, 60.0))
+    clean_records, clean = run_both(scenario, aiding={"gnss": {"handover_s": 20.0}})
+    records, pipeline = run_both(scenario, aiding={"gnss": {"handover_s": 20.0}}, outage_s=(40.0, 60.0))
     t, phi = errors_deg(scenario, records)
     sigma = np.array([r.heading_sigma_deg for r in records])
     clean_sigma = np.array([r.heading_sigma_deg for r in clean_records])

@@ -30,7 +30,7 @@ def run_transfer(scenario, seed=1, overrides=None, faults=None, piece=None):
     config = config_from_mapping(overrides or {})
     pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["master"])
     epochs = with_master_faults(master_epochs(scenario, seed), **(faults or {}), seed=seed)
-    feed = AidingFeed(AidingTrack(10, config.aiding.master_latency_s, config.aiding.max_gap_s), iter([epochs]))
+    feed = AidingFeed(AidingTrack(10, config.aiding.master.latency_s, config.aiding.max_gap_s), iter([epochs]))
     records = process_simulation(pipeline, scenario, seed, feed, piece)
     return records, pipeline
 
@@ -64,7 +64,7 @@ def test_the_noisy_run_meets_the_issue_bounds_and_beats_phase_1_alone():
 
 def test_the_seed_switch_at_10_s_is_an_option():
     scenario = replace(get_scenario("seed002"), duration_s=20.0)
-    records, _ = run_transfer(scenario, overrides={"aiding": {"master_handover_s": 10.0}})
+    records, _ = run_transfer(scenario, overrides={"aiding": {"master": {"handover_s": 10.0}}})
     assert {r.phase for r in records[:9]} == {"coarse"} and records[-1].phase in ("fine", "aligned")
 
 
@@ -115,7 +115,8 @@ def test_the_rate_table_runs_on_a_short_seed():
 def test_a_master_stream_that_stops_repeats_and_comes_late_is_counted_and_survived():
     scenario = get_scenario("seed002")
     faults = {"dropout_s": (30.0, 35.0), "repeated": 20, "late_s": 0.2}
-    records, pipeline = run_transfer(scenario, seed=2, overrides={"aiding": {"master_latency_s": 0.2}}, faults=faults)
+    late = {"aiding": {"master": {"latency_s": 0.2}}}
+    records, pipeline = run_transfer(scenario, seed=2, overrides=late, faults=faults)
     _, phi = errors_deg(scenario.for_seed(2), records)
     counters = pipeline.aiding_counters()
     assert counters["master_unaided_observations"] >= 50                 # 5 s of 10-Hz observations
@@ -160,7 +161,7 @@ def test_the_lever_arm_from_the_master_to_the_slave_is_compensated():
     """The slave 2.3 m from the master's point (master axes 1, 2, −0.5 m): the master reports the velocity of
     its own point, which differs by C_bm^n (ω × l) in the wing rocks (0.4 m/s)."""
     scenario = replace(get_scenario("seed002"), motion=seed002_flight(lever_m=(1.0, 2.0, -0.5)))
-    compensated, _ = run_transfer(scenario, overrides={"aiding": {"master_lever_m": [1.0, 2.0, -0.5]}})
+    compensated, _ = run_transfer(scenario, overrides={"aiding": {"master": {"lever_m": [1.0, 2.0, -0.5]}}})
     ignored, _ = run_transfer(scenario)
     t, phi = errors_deg(scenario.for_seed(1), compensated)
     _, phi_ignored = errors_deg(scenario.for_seed(1), ignored)
@@ -170,8 +171,8 @@ def test_the_lever_arm_from_the_master_to_the_slave_is_compensated():
 def test_a_rough_nominal_mounting_gives_the_slave_an_attitude_until_phase_1_has_resolved_it():
     scenario = replace(get_scenario("seed002"), duration_s=4.0)
     config = {"output": {"period_s": 0.2}}
-    nominal, _ = run_transfer(scenario, overrides={**config, "aiding": {"master_mount_deg": [21.0, 19.0, 20.5],
-                                                                        "master_mount_sigma_deg": 2.0}})
+    nominal, _ = run_transfer(scenario, overrides={**config, "aiding": {"master": {"mount_deg": [21.0, 19.0, 20.5],
+                                                                                   "mount_sigma_deg": 2.0}}})
     bare, _ = run_transfer(scenario, overrides=config)
     t, phi = errors_deg(scenario.for_seed(1), nominal)
     _, phi_bare = errors_deg(scenario.for_seed(1), bare)

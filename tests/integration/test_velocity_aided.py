@@ -29,7 +29,7 @@ def heading_at(run, t_s: float) -> float:
 def test_noise_free_multistage_is_exact_at_80_mps_where_the_traditional_model_is_not():
     scenario = replace(get_scenario("seed003-80-ideal"), duration_s=120.0)
     multistage_run = run_once(scenario, 1, config_from_mapping(COARSE_ONLY))
-    traditional = run_once(scenario, 1, config_from_mapping({**COARSE_ONLY, "aiding": {"levels": 1}}))
+    traditional = run_once(scenario, 1, config_from_mapping({**COARSE_ONLY, "aiding": {"odo": {"levels": 1}}}))
     assert abs(heading_at(multistage_run, 120.0)) < 0.01            # the issue: < 0.01° at 120 s
     assert abs(heading_at(traditional, 120.0)) > 0.1                # "off by tenths of a degree"
     assert np.abs(multistage_run.phi_deg[-1, :2]).max() < 0.001
@@ -93,7 +93,7 @@ def test_bad_odometer_data_is_counted_rejected_and_survived():
 
 def test_a_stream_in_small_pieces_gives_the_same_bits_as_one_chunk():
     scenario = replace(get_scenario("seed003-20"), duration_s=130.0)   # the 120-s window, then the Kalman stage
-    config = config_from_mapping({"aiding": {"relevel_interval_s": 2.0}})
+    config = config_from_mapping({"aiding": {"odo": {"relevel_interval_s": 2.0}}})
     epochs = odometer_epochs(scenario, 1)
     chunk = next(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 130.0, 1,
                           chunk_samples=10**6))
@@ -114,10 +114,10 @@ def test_a_stream_in_small_pieces_gives_the_same_bits_as_one_chunk():
 
 def test_aided_configuration_is_checked_and_modes_are_selected_by_the_aids():
     site = get_scenario("seed003-20").site
-    with pytest.raises(ConfigError, match=r"aiding\.odo_lever_m"):
-        config_from_mapping({"aiding": {"odo_lever_m": [1.0, 2.0]}})
-    with pytest.raises(ConfigError, match=r"aiding\.levels"):
-        config_from_mapping({"aiding": {"levels": 0}})
+    with pytest.raises(ConfigError, match=r"aiding\.odo\.lever_m"):
+        config_from_mapping({"aiding": {"odo": {"lever_m": [1.0, 2.0]}}})
+    with pytest.raises(ConfigError, match=r"aiding\.odo\.levels"):
+        config_from_mapping({"aiding": {"odo": {"levels": 0}}})
     with pytest.raises(ConfigError, match="no aided mode"):
         build_pipeline(config_from_mapping({}), site, 100.0, aids=["lidar"])
     assert build_pipeline(config_from_mapping({}), site, 100.0, aids=["odo"]).aid_width == 3
@@ -136,7 +136,7 @@ def test_odometer_scale_factor_and_lever_arm_are_fitted_in_the_window_and_carrie
     scenario = get_scenario("seed003-60")
     odometer = replace(scenario.odometer, scale=0.005, lever_b=(0.3, 1.5, -0.8))
     scenario = replace(scenario, odometer=odometer)
-    fitted = {"aiding": {"odo_scale_sigma": 0.01, "odo_lever_sigma_m": 1.0}}
+    fitted = {"aiding": {"odo": {"scale_sigma": 0.01, "lever_sigma_m": 1.0}}}
     ignored = run_once(replace(scenario, duration_s=120.0), 3, config_from_mapping(COARSE_ONLY))
     assert abs(heading_at(ignored, 120.0)) > 5.0
     config = config_from_mapping(fitted)
@@ -167,14 +167,15 @@ def test_a_window_too_short_for_the_kalman_stage_keeps_the_coarse_stage_honest_a
     # seed 003 at 20 m/s: a 30-s window leaves a heading σ of ~9° (error 7.5°). A linear Kalman stage started
     # there took σ to 0.8° in ten seconds with the error still 8°; the hand-over gate keeps the coarse stage
     scenario = replace(get_scenario("seed003-20"), duration_s=45.0)
-    short = {"aiding": {"window_s": 30.0}}
+    short = {"aiding": {"odo": {"window_s": 30.0}}}
     pipeline, _, records = run_pipeline(scenario, config_from_mapping(short))
     error_in_sigma = heading_error_in_sigma(scenario, records)
     assert {r.phase for r in records} == {"coarse"} and not any(r.converged for r in records)
-    assert "lengthen aiding.window_s" in pipeline.last_notice
+    assert "lengthen aiding.odo.window_s" in pipeline.last_notice
     assert error_in_sigma.max() < 3.0
     # the same run with the gate opened: the overconfidence the gate prevents
-    opened = config_from_mapping({"aiding": {"window_s": 30.0, "handover_heading_sigma_deg": 10.0}})
+    opened = config_from_mapping({"aiding": {"odo": {"window_s": 30.0}},
+                                  "fine": {"kalman": {"handover_heading_sigma_deg": 10.0}}})
     pipeline, _, records = run_pipeline(scenario, opened)
     error_in_sigma = heading_error_in_sigma(scenario, records)
     assert records[-1].phase != "coarse" and pipeline.last_notice is None

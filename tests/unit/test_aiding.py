@@ -36,10 +36,10 @@ def test_lever_arm_and_std_keys(tmp_path):
     rows = np.array([[0.1, 30.0, 114.0, 20.0, 0.0, 50.0, 0.0]])
     keys = {"lever_x_m": 1.0, "lever_y_m": -1.0, "lever_z_m": 0.5, "vel_std_mps": 0.1, "pos_std_m": 2.0}
     log = open_aiding_log("gnss", write_log(tmp_path / "g.csv", "gnss", rows, keys))
-    assert log.stated() == {"gnss_lever_m": (1.0, -1.0, 0.5), "gnss_vel_std_mps": 0.1, "gnss_pos_std_m": 2.0}
+    assert log.stated() == {"lever_m": (1.0, -1.0, 0.5), "vel_std_mps": 0.1, "pos_std_m": 2.0}
     assert open_aiding_log("odo", write_log(tmp_path / "o.csv", "odo", rows[:, :4])).stated() == {}
     lever_y = open_aiding_log("gnss", write_log(tmp_path / "y.csv", "gnss", rows, {"lever_y_m": 2.0, "vel_std_mps": 0}))
-    assert lever_y.stated() == {"gnss_lever_m": (0.0, 2.0, 0.0)}   # a 0 std states an ideal receiver: none taken
+    assert lever_y.stated() == {"lever_m": (0.0, 2.0, 0.0)}   # a 0 std states an ideal receiver: none taken
     with pytest.raises(LogFormatError, match="vel_std_mps must be a finite number ≥ 0"):
         open_aiding_log("odo", write_log(tmp_path / "bad.csv", "odo", rows[:, :4], {"vel_std_mps": -1}))
     with pytest.raises(ValueError, match="unknown aiding kind"):
@@ -190,7 +190,7 @@ def test_sim_replay_eval_and_the_live_bench_configure_an_aiding_sensor_alike(tmp
     """What a simulated aiding log states of its sensor is read back by the replay as the evaluation and the live
     bench configure it, and the bench's [aiding] table (every sensor of the scenario) is a valid configuration. An
     ideal sensor states no noise, and the demo must not configure that 0 (it would stop with
-    "aiding.gnss_vel_std_mps: must be > 0")."""
+    "aiding.gnss.vel_std_mps: must be > 0")."""
     from sinsalign.service.config import config_from_mapping
     from sinsalign.tools.sim.aiding import daemon_aiding, scenario_aids
     from sinsalign.tools.sim.files import write_simulation
@@ -205,4 +205,4 @@ def test_sim_replay_eval_and_the_live_bench_configure_an_aiding_sensor_alike(tmp
         assert log.stated() == aid.stated()
         assert bool(aid.stated()) == (not name.endswith("-ideal") or aid.kind == "gnss")   # an antenna's lever arm
         for key, value in aid.stated().items():
-            assert getattr(config.aiding, key) == value
+            assert getattr(getattr(config.aiding, aid.kind), key) == value

@@ -34,7 +34,8 @@ from sinsalign.protocol.imu_log import (
     write_rows,
 )
 from sinsalign.protocol.results import ResultRecord
-from sinsalign.service.config import MAX_TEXT_CHARS, Config, ConfigError, config_from_mapping, load_config
+from sinsalign.service.config import Config, ConfigError, config_from_mapping, load_config, tables, value_fields
+from support.config_keys import in_table, one_key
 
 from sinsalign.cli import main
 
@@ -304,13 +305,13 @@ def config_error(data: dict[str, Any]) -> str:
 
 
 @pytest.mark.parametrize(("section", "key", "value"), [
-    ("fine", "control_interval_s", 1e12), ("fine", "stored_data_s", 1e15), ("output", "period_s", 1e-300),
-    ("fine", "live_pass_steps", 10**30), ("aiding", "window_s", 1e300), ("disturbance", "window_s", 1e300),
-    ("aiding", "master_lever_m", [1e300, 0.0, 0.0]), ("site", "lon_deg", 400.0), ("site", "height_m", -1e308),
+    ("fine", "control_interval_s", 1e12), ("fine.compass", "stored_data_s", 1e15), ("output", "period_s", 1e-300),
+    ("fine.compass", "live_pass_steps", 10**30), ("aiding.odo", "window_s", 1e300), ("disturbance", "window_s", 1e300),
+    ("aiding.master", "lever_m", [1e300, 0.0, 0.0]), ("site", "lon_deg", 400.0), ("site", "height_m", -1e308),
 ])
 def test_absurd_configuration_values_are_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path, section: str,
                                                  key: str, value: Any) -> None:
-    assert config_error({section: {key: value}}).startswith(f"{section}.{key}:")
+    assert config_error(one_key(section, key, value)).startswith(f"{section}.{key}:")
     toml = tmp_path / "absurd.toml"
     literal = json.dumps(value) if isinstance(value, list) else repr(value)
     toml.write_text(f"[{section}]\n{key} = {literal}\n")
@@ -318,8 +319,8 @@ def test_absurd_configuration_values_are_refused(capsys: pytest.CaptureFixture[s
 
 
 @pytest.mark.parametrize(("data", "key"), [
-    ({"fine": {"stored_data_s": 3600.0, "control_interval_s": 0.001}}, "fine.stored_data_s"),
-    ({"aiding": {"window_s": 3600.0}, "alignment": {"obs_interval_s": 0.001}}, "aiding.window_s"),
+    ({"fine": {"compass": {"stored_data_s": 3600.0}, "control_interval_s": 0.001}}, "fine.compass.stored_data_s"),
+    ({"aiding": {"odo": {"window_s": 3600.0}}, "alignment": {"obs_interval_s": 0.001}}, "aiding.odo.window_s"),
     ({"disturbance": {"window_s": 600.0, "check_interval_s": 0.001}}, "disturbance.window_s"),
 ])
 def test_stores_sized_by_two_keys_are_bounded(data: dict[str, Any], key: str) -> None:
@@ -327,12 +328,9 @@ def test_stores_sized_by_two_keys_are_bounded(data: dict[str, Any], key: str) ->
 
 
 def numeric_fields() -> list[tuple[str, str, object]]:
-    """Every numeric key of the configuration (numbers and lists of numbers) with its default."""
-    config = Config()
-    return [(section.name, f.name, getattr(getattr(config, section.name), f.name)) for section in fields(config)
-            for f in fields(getattr(config, section.name))
-            if isinstance(getattr(getattr(config, section.name), f.name), int | float | tuple)
-            and not isinstance(getattr(getattr(config, section.name), f.name), bool)
+    """Every numeric key of the configuration (numbers and lists of numbers) with its table and default."""
+    return [(name, f.name, getattr(table, f.name)) for name, table in tables(Config()) for f in value_fields(table)
+            if isinstance(getattr(table, f.name), int | float | tuple) and not isinstance(getattr(table, f.name), bool)
             and "str" not in str(f.type)]
 
 
@@ -341,18 +339,18 @@ def test_every_numeric_key_has_both_bounds(section: str, key: str, default: obje
     for extreme in (1e300, -1e300):
         value: object = extreme if isinstance(default, float) else int(extreme) if isinstance(default, int) else (
             [extreme] * max(len(default), 3))
-        assert config_error({section: {key: value}}).startswith(f"{section}.{key}:")
+        assert config_error(one_key(section, key, value)).startswith(f"{section}.{key}:")
 
 
-@pytest.mark.parametrize(("section", "key"), [("fine", "schedule_time_s"), ("zenoh", "listen")])
+@pytest.mark.parametrize(("section", "key"), [("fine.compass", "schedule_time_s"), ("zenoh", "listen")])
 def test_lists_have_a_bounded_length(section: str, key: str) -> None:
     value = list(range(10_000)) if key == "schedule_time_s" else ["tcp/127.0.0.1:7447"] * 10_000
-    assert config_error({section: {key: value}}).startswith(f"{section}.{key}:")
+    assert config_error(one_key(section, key, value)).startswith(f"{section}.{key}:")
 
 
 def test_a_deeply_nested_toml_array_is_one_line(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     toml = tmp_path / "deep.toml"
-    toml.write_text("[fine]\nlevel_sigma = " + "[" * 5000 + "]" * 5000 + "\n")
+    toml.write_text("[fine.compass]\nlevel_sigma = " + "[" * 5000 + "]" * 5000 + "\n")
     with pytest.raises(ConfigError) as info:
         load_config(toml)
     assert str(info.value).startswith(f"{toml}:")
@@ -360,9 +358,9 @@ def test_a_deeply_nested_toml_array_is_one_line(capsys: pytest.CaptureFixture[st
     replay_error(capsys, tmp_path, write_log(tmp_path, log_text()), "--config", str(toml))
 
 
-@pytest.mark.parametrize("text", ["[fine]\nstored_pairs = " + "9" * 5000 + "\n",
+@pytest.mark.parametrize("text", ["[fine.compass]\nstored_pairs = " + "9" * 5000 + "\n",
                                   "[zenoh]\nunit = '" + "u" * 10**6 + "'\n",
-                                  "[fine]\nlevel_sigma = [" + "[" * 3000 + "]" * 3000 + ", 1]\n"])
+                                  "[fine.compass]\nlevel_sigma = [" + "[" * 3000 + "]" * 3000 + ", 1]\n"])
 def test_toml_at_python_limits_is_one_line(tmp_path: Path, text: str) -> None:
     toml = tmp_path / "limits.toml"
     toml.write_text(text)
@@ -382,8 +380,8 @@ def test_a_nested_deep_mapping_value_is_one_line() -> None:
     deep: list[Any] = []
     for _ in range(5000):
         deep = [deep]
-    assert config_error({"fine": {"level_sigma": deep}}).startswith("fine.level_sigma:")
-    assert config_error({"fine": {"stored_pairs": 10**5000}}).startswith("fine.stored_pairs:")
+    assert config_error({"fine": {"compass": {"level_sigma": deep}}}).startswith("fine.compass.level_sigma:")
+    assert config_error({"fine": {"compass": {"stored_pairs": 10**5000}}}).startswith("fine.compass.stored_pairs:")
     assert config_error({"fine": {"x" * 10**6: 1}}).startswith("fine.xxx")
 
 
@@ -486,10 +484,10 @@ SCALAR = LIMITS | TOO_LONG_TO_PRINT | st.floats() | st.integers() | st.text(max_
 VALUE = st.recursive(SCALAR, lambda inner: st.lists(inner, max_size=6) | st.dictionaries(st.text(max_size=8), inner,
                                                                                           max_size=3), max_leaves=12)
 VALUE = VALUE | st.integers(1, 5000).map(nested) | st.lists(SCALAR, min_size=3, max_size=3)
-SECTION_KEYS = {section.name: [f.name for f in fields(getattr(Config(), section.name))] for section in fields(Config())}
+SECTION_KEYS = {name: [f.name for f in fields(table)] for name, table in tables(Config())}
 TABLE = st.sampled_from(sorted(SECTION_KEYS)).flatmap(
     lambda section: st.dictionaries(st.sampled_from(SECTION_KEYS[section]) | st.text(max_size=12), VALUE,
-                                    max_size=4).map(lambda table: {section: table}))
+                                    max_size=4).map(lambda table: in_table(section, table)))
 MAPPING = TABLE | st.dictionaries(st.text(max_size=12), VALUE | st.dictionaries(st.text(max_size=8), VALUE, max_size=2),
                                   max_size=3)
 
@@ -558,27 +556,3 @@ def test_logs_at_the_limits_read_or_say_why(tmp_path: Path, keys: dict[str, str]
 def test_logs_at_the_limits_read_or_say_why_long(tmp_path: Path, keys: dict[str, str], cells: list[list[str]],
                                                  kind: str | None, ending: str) -> None:
     reads_or_refuses(tmp_path, {**HEADER, **keys} if kind is None else keys, cells, kind, ending)
-
-
-# --- the reference ----------------------------------------------------------------------------------------------------
-
-
-def rule_of(default: object, metadata: Any) -> str:
-    """The range of a key as docs/reference.md states it."""
-    if "range" in metadata:
-        text = str(metadata["range"])
-        return f"{metadata['what']}, each in {text}" if "lengths" in metadata else text
-    if "lengths" in metadata:
-        return metadata["what"]
-    return f"text of at most {metadata.get('chars', MAX_TEXT_CHARS)} characters" if isinstance(default, str) else ""
-
-
-def test_the_reference_states_every_range() -> None:
-    reference = (Path(__file__).parents[2] / "docs" / "reference.md").read_text(encoding="utf-8")
-    config = Config()
-    for section in fields(config):
-        table = getattr(config, section.name)
-        for f in fields(table):
-            rule = rule_of(getattr(table, f.name), f.metadata)
-            if rule:
-                assert f"| `{section.name}.{f.name}` | {rule} |" in reference

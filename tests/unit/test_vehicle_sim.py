@@ -87,7 +87,7 @@ def test_odometer_measures_the_lever_arm_point_and_writes_the_pinned_log(tmp_pat
     noisy = body_velocity(motion, t, noise_std_mps=0.03, rng=np.random.default_rng(0))
     assert np.std(noisy - ideal) == pytest.approx(0.03, rel=0.05)
     log = open_aiding_log("odo", write_body_velocity_log(tmp_path / "odo.csv", t, noisy, 0.03))
-    assert log.stated() == {"odo_std_mps": 0.03}
+    assert log.stated() == {"vel_std_mps": 0.03}
     assert np.array_equal(np.concatenate(list(log.blocks()))[:, 1:], noisy)
 
 

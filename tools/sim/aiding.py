@@ -87,7 +87,7 @@ def without_span(epochs: np.ndarray, span_s: tuple[float, float] | None) -> np.n
 def with_master_faults(epochs: np.ndarray, dropout_s: tuple[float, float] | None = None, repeated: int = 0,
                        late_s: float = 0.0, seed: int = 0) -> np.ndarray:
     """Master-INS epochs (N, 11) with faults: none inside ``dropout_s``, ``repeated`` epochs sent twice, and every
-    time stamp ``late_s`` late (what ``aiding.master_latency_s`` takes back)."""
+    time stamp ``late_s`` late (what ``aiding.master.latency_s`` takes back)."""
     out = without_span(epochs, dropout_s)
     if repeated:
         twice = np.sort(np.random.default_rng([seed, 7]).choice(len(out), repeated, replace=False))
@@ -199,15 +199,15 @@ class ScenarioAid:
     odo_lever_b: tuple[float, float, float] | None = None
 
     def stated(self) -> dict[str, object]:
-        """The ``[aiding]`` configuration its log states (:func:`stated_aiding`), as a replay of it takes."""
+        """The ``[aiding.<kind>]`` configuration its log states (:func:`stated_aiding`), as a replay of it takes."""
         return stated_aiding(self.kind, self.log_keys)
 
     def daemon_config(self) -> dict[str, object]:
-        """The daemon's ``[aiding]`` keys: this kind as the input, what its log would state, and an odometer's lever
-        arm (its log has no key for it: the integrator configures it)."""
-        lever = {} if self.odo_lever_b is None else {"odo_lever_m": list(self.odo_lever_b)}
-        return {"inputs": [self.kind], **{k: list(v) if isinstance(v, tuple) else v for k, v in self.stated().items()},
-                **lever}
+        """The daemon's ``[aiding]`` keys: this kind as the input, and in its table what its log would state and an
+        odometer's lever arm (its log has no key for it: the integrator configures it)."""
+        lever = {} if self.odo_lever_b is None else {"lever_m": list(self.odo_lever_b)}
+        table = {k: list(v) if isinstance(v, tuple) else v for k, v in self.stated().items()}
+        return {"inputs": [self.kind], self.kind: {**table, **lever}}
 
 
 def scenario_aids(scenario: Scenario, seed: int) -> list[ScenarioAid]:
