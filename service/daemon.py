@@ -1,7 +1,9 @@
-"""The alignment daemon: inputs → decoder → sample checks → pipeline → Zenoh publishers.
+"""The alignment daemon: inputs → decoder → sample checks → pipeline → outputs.
 
 What lies between the bytes and samples received and the records published needs no I/O: :class:`~.ingest.Ingest`
-does it, fed by the loop.
+does it, fed by the loop. Around it sit thin shells, one job each: the serial port (serial_port.py), the Zenoh
+inputs (zenoh_inputs.py) and outputs (zenoh_outputs.py), the recording (recording.py) and the status's health rule
+(health.py).
 
 One loop thread does everything in order, driven by the IMU frames' own timestamps: read what
 arrived (serial port and/or the Zenoh IMU topic), decode, check every sample (time must move
@@ -26,21 +28,16 @@ import zenoh
 from ..protocol import messages
 from ..protocol.keys import UnitKeys
 from ..protocol.results import ResultRecord
-from ..protocol.sequence import SequenceTracker
 from .config import Config, ConfigError
 from .health import health
-from .inbox import Inbox
 from .ingest import Ingest, SampleCounters
 from .recording import Recording
 from .sample_gate import Sample
 from .serial_port import SerialPort
+from .zenoh_inputs import ZenohInputs
+from .zenoh_outputs import ZenohOutputs
 
 log = logging.getLogger("sinsalign.daemon")
-INBOX_LIMIT = 100_000
-"""Messages each Zenoh inbox holds for the loop (8 minutes of a 200-Hz IMU)."""
-INBOX_BYTES = 32 << 20
-"""Bytes each Zenoh inbox holds: the messages' limit at their usual size, three times over."""
-MSGPACK = zenoh.Encoding("application/msgpack")
 UNIT_CHECK_S = 0.3
 """How long a start connected to other Zenoh nodes looks for another daemon's liveliness token of the same unit
 (s): the tokens arrive some 50 ms after the session opens. Without any peer there is nothing to wait for."""
@@ -55,25 +52,17 @@ class Daemon:
         self.serial = serial_port
         self.keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
         self.ingest = Ingest(config, self._error, self._record_raw, self._record_restart)
-        self.zenoh_sequence = SequenceTracker(modulus=1 << 32)
         self.last_error: str | None = None
         self.last_record: ResultRecord | None = None
         self._started = time.monotonic()
         self._last_input = None
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
-        self._inbox: Inbox[zenoh.ZBytes] = Inbox(INBOX_LIMIT, INBOX_BYTES)
         self._refuse_a_served_unit()   # before anything is opened: the other daemon's recording stays whole
         self._recording = Recording(config.daemon.record_path, config) if config.daemon.record_path else None
-        self._attitude_pub = session.declare_publisher(self.keys.attitude, encoding=MSGPACK)
-        self._status_pub = session.declare_publisher(self.keys.status, encoding=MSGPACK)
-        self._token = session.liveliness().declare_token(self.keys.alive)
-        self._queryable = session.declare_queryable(self.keys.state, self._on_query)
-        self._imu_sub = (session.declare_subscriber(self.keys.imu, self._on_imu)
-                         if config.zenoh.imu_input else None)
-        self._aid_inbox: Inbox[tuple[str, zenoh.ZBytes]] = Inbox(INBOX_LIMIT, INBOX_BYTES)
-        self._aid_subs = [session.declare_subscriber(self.keys.aid(kind), self._aid_callback(kind))
-                          for kind in self.ingest.aid_kinds]
+        self.outputs = ZenohOutputs(session, self.keys, self.state)
+        self.inputs = ZenohInputs(session, self.keys, config.zenoh.imu_input, self.ingest.aid_kinds, self.counters,
+                                  self._error)
         self._next_status = time.monotonic()
 
     @property
@@ -82,26 +71,6 @@ class Daemon:
         return self.ingest.counters
 
     # ---- inputs -------------------------------------------------------------------------
-    def _aid_callback(self, kind: str):
-        def on_aid(sample: zenoh.Sample) -> None:   # a Zenoh thread: hand the payload over
-            self._aid_inbox.put((kind, sample.payload), len(sample.payload))
-        return on_aid
-
-    def _zenoh_aiding_epochs(self) -> list[tuple[str, messages.AidingSample]]:
-        """Every aiding epoch that arrived on Zenoh, decoded, in arrival order; a bad one counted and dropped."""
-        epochs = []
-        for kind, payload in self._aid_inbox.drain():
-            try:
-                epochs.append((kind, messages.decode_aiding(kind, payload.to_bytes())))
-            except messages.MessageError as exc:
-                self.counters.bad_aiding += 1
-                self._error(f"aiding message on {self.keys.aid(kind)} dropped: {exc}")
-        return epochs
-
-    def _on_imu(self, sample: zenoh.Sample) -> None:
-        # a Zenoh thread: only hand the payload over (not even copied); decoding happens in the loop
-        self._inbox.put(sample.payload, len(sample.payload))
-
     def _read_inputs(self) -> list[Sample]:
         """Decoded samples from every input, in arrival order.
 
@@ -112,23 +81,7 @@ class Daemon:
         out = []
         if self.serial is not None:
             out += self.ingest.decode_serial(self.serial.read())
-        if self._imu_sub is not None:
-            out += self._decode_zenoh(self._inbox.drain(0.0 if self.serial is not None else 0.02))
-        return out
-
-    def _decode_zenoh(self, payloads: list[zenoh.ZBytes]) -> list[Sample]:
-        out = []
-        for payload in payloads:
-            try:
-                m = messages.decode_imu(payload.to_bytes())
-            except messages.MessageError as exc:
-                self.counters.bad_messages += 1
-                self._error(f"IMU message dropped: {exc}")
-                continue
-            if self.zenoh_sequence.accept(m.seq):
-                out.append((m.t, m.dtheta, m.dv, m.status, False))
-        self.counters.samples_in_zenoh += len(out)
-        return out
+        return out + self.inputs.imu_samples(0.0 if self.serial is not None else 0.02)
 
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
@@ -136,15 +89,15 @@ class Daemon:
         samples = self._read_inputs()
         if samples:
             self._last_input = time.monotonic()
-        records = self.ingest.feed_samples(samples, self._zenoh_aiding_epochs())
-        for record in records:
-            self._attitude_pub.put(messages.pack(messages.attitude_message(self.keys.unit, record)))
-            self.last_record = record
+        records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs())
+        self.outputs.records(records)
+        if records:
+            self.last_record = records[-1]
         self.counters.records_published += len(records)
         now = time.monotonic()
         if now >= self._next_status:
             self._next_status = now + self.config.daemon.status_period_s
-            self._status_pub.put(messages.pack(self.status(advance=True)))
+            self.outputs.status(self.status(advance=True))
             if self._recording is not None:
                 self._recording.flush()
         return records
@@ -169,17 +122,15 @@ class Daemon:
     @property
     def attitude_subscribed(self) -> bool:
         """Some subscriber matches the attitude key (``sinsalign demo`` waits for its watch client)."""
-        return self._attitude_pub.matching_status.matching
+        return self.outputs.attitude_subscribed
 
     def stop(self) -> None:
         self._stop.set()
 
     def close(self) -> None:
-        self._status_pub.put(messages.pack(self.status(advance=True)))
-        for entity in (self._imu_sub, *self._aid_subs, self._queryable, self._token, self._status_pub,
-                       self._attitude_pub):
-            if entity is not None:
-                entity.undeclare()
+        self.outputs.status(self.status(advance=True))
+        self.inputs.close()
+        self.outputs.close()
         if self.serial is not None:
             self.serial.close()
         if self._recording is not None:
@@ -190,10 +141,9 @@ class Daemon:
 
     # ---- status, state, recording -----------------------------------------------------------
     def all_counters(self) -> dict[str, int]:
-        counters = self.ingest.all_counters() | self.zenoh_sequence.counters("zenoh_seq_")
-        inboxes = (self._inbox, self._aid_inbox)
-        counters["inbox_overflow"] += sum(inbox.overflow for inbox in inboxes)
-        counters["oversized_messages"] = sum(inbox.oversized for inbox in inboxes)
+        counters = self.ingest.all_counters()
+        zenoh_counters = self.inputs.counters()
+        counters |= {**zenoh_counters, "inbox_overflow": counters["inbox_overflow"] + zenoh_counters["inbox_overflow"]}
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects,
                          "serial_foreign_devices": self.serial.foreign_devices}
@@ -217,12 +167,12 @@ class Daemon:
         return messages.status_message(self.keys.unit, now - self._started, state, phase,
                                        ingest.t_last, last_error, counters)
 
-    def _on_query(self, query: zenoh.Query) -> None:
-        state = {"v": messages.VERSION, "unit": self.keys.unit, "status": self.status(),
-                 "attitude": (messages.attitude_message(self.keys.unit, self.last_record)
-                              if self.last_record is not None else None),
-                 "config": self.config.as_dict()}
-        query.reply(self.keys.state, messages.pack(state), encoding=MSGPACK)
+    def state(self) -> dict:
+        """The answer to a state query: the status now, the last attitude and the configuration in effect."""
+        return {"v": messages.VERSION, "unit": self.keys.unit, "status": self.status(),
+                "attitude": (messages.attitude_message(self.keys.unit, self.last_record)
+                             if self.last_record is not None else None),
+                "config": self.config.as_dict()}
 
     def _error(self, text: str) -> None:
         if text != self.last_error:
@@ -244,11 +194,7 @@ class Daemon:
 
     def _inputs_text(self) -> str:
         inputs = [f"serial {self.serial.path} @ {self.serial.baud} Bd"] if self.serial is not None else []
-        if self._imu_sub is not None:
-            inputs.append(f"Zenoh {self.keys.imu}")
-        aiding = [f"{kind} aiding (Zenoh {self.keys.aid(kind)}, serial aiding frames)"
-                  for kind in self.ingest.aid_kinds]
-        return " + ".join(inputs + aiding) or "no input"
+        return " + ".join(inputs + self.inputs.texts()) or "no input"
 
     def _record_restart(self, reason: str) -> None:
         """A restart into the recording, if one is open: its replay starts over at the same sample."""

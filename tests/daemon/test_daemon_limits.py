@@ -107,7 +107,7 @@ def test_every_sample_a_dropping_publisher_loses_is_counted(tmp_path, data):
         time.sleep(0.5)
         closing = imu_publisher(run, zenoh.CongestionControl.BLOCK)
         publish_samples(closing, 1, [a[n:] for a in data], first_seq=n)   # the last one shows any gap before it
-        wait_until(lambda: run.daemon.counters.samples_in_zenoh + run.daemon.zenoh_sequence.gaps == n + 1,
+        wait_until(lambda: run.daemon.counters.samples_in_zenoh + run.daemon.inputs.sequence.gaps == n + 1,
                    timeout_s=20.0)
     finally:
         run.stop()
