@@ -204,7 +204,7 @@ class AlignmentPipeline:
     def carry_aid_start(self, previous: AlignmentPipeline) -> None:
         """A fresh pipeline that replaces ``previous`` (a restart after an outage): an aid that had begun there stays
         begun here, so an observation without it is a dropout, not a wait."""
-        self.coarse.aid_started = self.coarse.aid_started or previous.coarse.aid_started
+        self.coarse.carry_aid_start(previous.coarse)
 
     def stages_text(self) -> str:
         """The stages that run, for the operator's log (the mode's words)."""
@@ -329,9 +329,9 @@ class AlignmentPipeline:
         """The stages report σ with :attr:`sigma_grade` (their estimates keep the datasheet's weights and gains). The
         loops take it until they start: their covariance then runs on with one grade, so live passes sliced over
         many steps propagate it as offline passes run at once do."""
-        self.coarse.sigma_grade = self.sigma_grade
-        if isinstance(self.fine, FineAlignment) and not self.fine.active:
-            self.fine.loops.grade = self.sigma_grade
+        self.coarse.report_with(self.sigma_grade)
+        if isinstance(self.fine, FineAlignment):
+            self.fine.report_with(self.sigma_grade)
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
         """The aiding values of the samples (N, ``aid_width``: every kind's, in order), None without aiding; with the

@@ -146,6 +146,15 @@ class InertialCoarseAlignment:
             return self.solver.prepare(b, r, mu, elapsed_s)
         return self.solver.prepare(b, r, mu)
 
+    def report_with(self, grade: SensorGrade) -> None:
+        """σ is reported with ``grade`` from now on (the noise the data show); the estimate keeps the datasheet's
+        weights."""
+        self.sigma_grade = grade
+
+    def carry_aid_start(self, previous: InertialCoarseAlignment) -> None:
+        """An aid that had begun for ``previous`` (the stage this one replaces) has begun here too."""
+        self.aid_started = self.aid_started or previous.aid_started
+
     def scratch(self) -> InertialCoarseAlignment:
         """A copy to run ahead on and throw away: the state the updates replace is copied, nothing else.
 

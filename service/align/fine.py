@@ -44,6 +44,13 @@ class FineAlignment:
     def active(self) -> bool:
         return self.state is not None
 
+    def report_with(self, grade: SensorGrade) -> None:
+        """The loops' covariance runs with ``grade`` (the noise the data show) once they start; after that it runs
+        on with the grade it started with, so live passes sliced over many steps propagate it as offline passes
+        run at once do."""
+        if not self.active:
+            self.loops.grade = grade
+
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float, heading_sigma_rad: float,
               t_loop_s: float = 0.0) -> None:
         """Hand-over: start the loops from attitude C_b^n (3, 3) with its 1-sigma noise errors,

@@ -23,6 +23,7 @@ filter gates it (χ² of the innovation against its covariance) and counts what 
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -141,7 +142,8 @@ class ErrorStateFilter:
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, V_n: np.ndarray, position: np.ndarray,
               tilt_sigma_rad: float, heading_sigma_rad: float, velocity_sigma_mps: float,
               velocity_from_attitude: bool = True,
-              extra: dict[str, tuple[np.ndarray, np.ndarray]] | None = None, position_sigma_m: float = 1.0) -> None:
+              extra: dict[str, tuple[np.ndarray, np.ndarray]] | None = None, position_sigma_m: float = 1.0,
+              measurements: Sequence[Measurement] = ()) -> None:
         """Hand-over from the coarse stage: attitude C_b^n (3, 3) of the body attitude C_b^{b0}, V^n,
         position, and their 1-sigma errors.
 
@@ -150,7 +152,14 @@ class ErrorStateFilter:
         first body-velocity reading would "see" the heading error and collapse its σ at once.
         ``extra``: (values, 1-sigma) of a measurement's own states known from the coarse stage, in place
         of the measurement's priors. ``position_sigma_m``: 1-sigma of the position per ENU axis.
+        ``measurements``: models whose reference is known only now (a mounting, a lever arm from the coarse stage),
+        each in place of the configured one of its name (with as many states of its own).
         """
+        for m in measurements:
+            if self.measurements[m.name].extra_states != m.extra_states:
+                raise ValueError(f"measurement {m.name}: {m.extra_states} states in place of "
+                                 f"{self.measurements[m.name].extra_states}")
+            self.measurements[m.name] = m
         self.C_n_n0 = np.eye(3)
         self.C_b0_n0 = C_b_n @ C_b_b0.T
         self._C_b_b0 = C_b_b0
@@ -413,20 +422,20 @@ class GnssPosition(AntennaMeasurement):
 class MasterAttitude:
     """Attitude matching against a master INS (transfer alignment, seed 002), with the mounting as extra states.
 
-    The mounting is M = C_bs^bm = M_ref exp([μ×]): ``M_ref`` from the large-angle phase (set before the
-    filter starts), μ (3, rad, slave body axes) the filter's whole-value correction. The value is the
-    master's quaternion of C_bm^n; the innovation is the small rotation E = C_bm^n M_ref exp([μ̂×]) Ĉ_bs^{nT}
-    ≈ I + [(φ + C_bs^n (μ̂ − μ))×], so H_φ = I and H_μ = −C_bs^n. std_rad : the master's attitude noise per
-    axis; mount_sigma_rad : prior 1-sigma of μ per axis.
+    The mounting is M = C_bs^bm = M_ref exp([μ×]): ``M_ref`` from the large-angle phase (the model the filter
+    starts with, :meth:`ErrorStateFilter.start`), μ (3, rad, slave body axes) the filter's whole-value correction.
+    The value is the master's quaternion of C_bm^n; the innovation is the small rotation
+    E = C_bm^n M_ref exp([μ̂×]) Ĉ_bs^{nT} ≈ I + [(φ + C_bs^n (μ̂ − μ))×], so H_φ = I and H_μ = −C_bs^n.
+    std_rad : the master's attitude noise per axis; mount_sigma_rad : prior 1-sigma of μ per axis.
     """
 
     name = "master_att"
     extra_states = 3
 
-    def __init__(self, std_rad: float, mount_sigma_rad: float = 0.01) -> None:
+    def __init__(self, std_rad: float, mount_sigma_rad: float = 0.01, M_ref: np.ndarray | None = None) -> None:
         self.std_rad = std_rad
         self.mount_sigma_rad = mount_sigma_rad
-        self.M_ref = np.eye(3)
+        self.M_ref = np.eye(3) if M_ref is None else np.asarray(M_ref, dtype=float)
 
     def initial_extra(self) -> tuple[np.ndarray, np.ndarray]:
         return np.zeros(3), np.full(3, self.mount_sigma_rad)

@@ -12,6 +12,7 @@ is the output; every record carries the mounting with its σ (:meth:`Transfer.mo
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -24,8 +25,19 @@ from ..align.solvers import GroupedWahba
 from ..align.transfer import MASTER_COLUMNS, MasterCoarseAlignment, MasterSource, correlate_handover
 from .kalman import KalmanMode
 
+if TYPE_CHECKING:
+    from ..config import MasterConfig
+
 HANDOVER_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one master epoch: its σ is this many times the stated noise."""
+
+
+def master_velocity(master: MasterConfig, lever_b: np.ndarray | None = None) -> GnssVelocity:
+    """The master's velocity as the filter's measurement of the point at ``lever_b`` (slave body axes, m), that
+    lever arm estimated from there (``aiding.master.lever_sigma_m`` > 0) or taken as known."""
+    if master.lever_sigma_m > 0.0:
+        return LeverVelocity(master.vel_std_mps, lever_b, master.lever_sigma_m, name="master_vel")
+    return GnssVelocity(master.vel_std_mps, lever_b, name="master_vel")
 
 
 class Transfer(KalmanMode):
@@ -49,10 +61,8 @@ class Transfer(KalmanMode):
         p = self.p
         if not p.config.fine.enabled:
             return None
-        ad = p.config.aiding
-        velocity = (LeverVelocity(ad.master.vel_std_mps, lever_sigma_m=ad.master.lever_sigma_m, name="master_vel")
-                    if ad.master.lever_sigma_m > 0.0 else GnssVelocity(ad.master.vel_std_mps, name="master_vel"))
-        return ErrorStateFilter(p.grade, [velocity, MasterAttitude(ad.master.att_std_deg * DEG)],
+        master = p.config.aiding.master
+        return ErrorStateFilter(p.grade, [master_velocity(master), MasterAttitude(master.att_std_deg * DEG)],
                                 p.config.fine.kalman.gate_chi2)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
@@ -77,17 +87,18 @@ class Transfer(KalmanMode):
         solution = self.handover_solution(t_end, q_b_b0, None) if due else None
         if solution is None:
             return
-        attitude: MasterAttitude = p.fine.measurements["master_att"]
-        attitude.M_ref = p.coarse.mounting
-        # the master's point from the slave, in the slave's axes: its velocity is what the master reports
-        velocity: GnssVelocity = p.fine.measurements["master_vel"]
-        velocity.lever_b = -attitude.M_ref.T @ np.array(ad.master.lever_m)
+        # the filter's models about phase 1's mounting: the attitude matched through it, and the master's point
+        # seen from the slave, in the slave's axes (its velocity is what the master reports)
+        M_ref = p.coarse.mounting
+        lever_b = -M_ref.T @ np.array(ad.master.lever_m)
+        attitude = MasterAttitude(ad.master.att_std_deg * DEG, M_ref=M_ref)
         heading_rad, level_rad = solution.heading_sigma_deg * DEG, solution.level_sigma_deg * DEG
-        C_b_n = dcm_from_quat(aid[:4]) @ attitude.M_ref         # the master's attitude now, through the mounting
+        C_b_n = dcm_from_quat(aid[:4]) @ M_ref         # the master's attitude now, through the mounting
         position = np.r_[np.radians(aid[7:9]), aid[9]]
-        V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], velocity.lever_b)
+        V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], lever_b)
         p.fine.start(C_b_n, C_b_b0, V_n, position, level_rad, heading_rad,
-                     HANDOVER_SIGMA_FACTOR * ad.master.vel_std_mps, velocity_from_attitude=False)
+                     HANDOVER_SIGMA_FACTOR * ad.master.vel_std_mps, velocity_from_attitude=False,
+                     measurements=[master_velocity(ad.master, lever_b), attitude])
         # the φ, μ and ∇ prior: it replaces start's diagonal one
         correlate_handover(p.fine, C_b_n, *noise, p.grade, p.site.gravity)
 
