@@ -367,25 +367,28 @@ class GnssVelocity(AntennaMeasurement):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        innovation, H_core, R = self.point_velocity(nav, value, self.lever_b)
+        innovation, H_core, R = point_velocity(nav, value, self.lever_b, self.std)
         return innovation, H_core, np.zeros((3, 0)), R
 
-    def point_velocity(self, nav: Navigation, value: np.ndarray, lever_b: np.ndarray
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(innovation, H_core, R) of the velocity of the point at ``lever_b`` (body axes, m)."""
-        lever_velocity = antenna_lever_velocity(nav.C_b_n, value[3:6], nav.position[0], lever_b)
-        H_core = np.zeros((3, CORE_STATES))
-        H_core[:, PHI] = -skew(lever_velocity)
-        H_core[:, DV] = -np.eye(3)
-        return value[:3] - nav.V_n - lever_velocity, H_core, np.eye(3) * self.std**2
+
+def point_velocity(nav: Navigation, value: np.ndarray, lever_b: np.ndarray, std: float
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(innovation, H_core, R) of a measured velocity (``value``: vE, vN, vU, then ω_ib^b (3) rad/s) of the point at
+    ``lever_b`` (body axes, m), white noise ``std`` (m/s) per ENU axis."""
+    lever_velocity = antenna_lever_velocity(nav.C_b_n, value[3:6], nav.position[0], lever_b)
+    H_core = np.zeros((3, CORE_STATES))
+    H_core[:, PHI] = -skew(lever_velocity)
+    H_core[:, DV] = -np.eye(3)
+    return value[:3] - nav.V_n - lever_velocity, H_core, np.eye(3) * std**2
 
 
-class LeverVelocity(GnssVelocity):
+class LeverVelocity(AntennaMeasurement):
     """The velocity of a point at a lever arm l^b that is not known well (transfer alignment: the master's point
     seen from the slave): h = V^n + C_b^n (ω_eb^b × l^b) with l^b (3, body axes, m) as extra states, whole values,
     prior ``lever_b`` ± ``lever_sigma_m`` per axis. The body's turns make it observable (∂h/∂l = C_b^n [ω_eb^b×]);
     left out, a 1-m lever arm rolled at 10°/s reads as 0.1-0.2 m/s of velocity error and tilts the estimate."""
 
+    name = "gnss_vel"
     extra_states = 3
 
     def __init__(self, std: float, lever_b: np.ndarray | None = None, lever_sigma_m: float = 1.0,
@@ -398,7 +401,7 @@ class LeverVelocity(GnssVelocity):
 
     def model(self, nav: Navigation, extra: np.ndarray, value: np.ndarray
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        innovation, H_core, R = self.point_velocity(nav, value, extra)
+        innovation, H_core, R = point_velocity(nav, value, extra, self.std)
         omega_eb_b = value[3:6] - nav.C_b_n.T @ earth_rate_n(nav.position[0])
         return innovation, H_core, nav.C_b_n @ skew(omega_eb_b), R
 

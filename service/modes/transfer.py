@@ -32,7 +32,7 @@ HANDOVER_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one master epoch: its σ is this many times the stated noise."""
 
 
-def master_velocity(master: MasterConfig, lever_b: np.ndarray | None = None) -> GnssVelocity:
+def master_velocity(master: MasterConfig, lever_b: np.ndarray | None = None) -> GnssVelocity | LeverVelocity:
     """The master's velocity as the filter's measurement of the point at ``lever_b`` (slave body axes, m), that
     lever arm estimated from there (``aiding.master.lever_sigma_m`` > 0) or taken as known."""
     if master.lever_sigma_m > 0.0:
