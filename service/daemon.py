@@ -32,7 +32,6 @@ from .config import Config, ConfigError
 from .health import health
 from .ingest import Ingest, SampleCounters
 from .recording import Recording
-from .sample_gate import Sample
 from .serial_port import SerialPort
 from .zenoh_inputs import ZenohInputs
 from .zenoh_outputs import ZenohOutputs
@@ -71,23 +70,22 @@ class Daemon:
         return self.ingest.counters
 
     # ---- inputs -------------------------------------------------------------------------
-    def _read_inputs(self) -> list[Sample]:
+    def _read_inputs(self) -> np.ndarray:
         """Decoded samples from every input, in arrival order.
 
         The serial port first (its read waits up to 20 ms for data), then the Zenoh IMU inbox,
         drained without waiting when a serial port paces the loop, or waited on for up to 20 ms
         when Zenoh is the only input. Serial aiding frames go to :attr:`Ingest.aiding_inbox`.
         """
-        out = []
-        if self.serial is not None:
-            out += self.ingest.decode_serial(self.serial.read())
-        return out + self.inputs.imu_samples(0.0 if self.serial is not None else 0.02)
+        serial = self.ingest.decode_serial(self.serial.read()) if self.serial is not None else None
+        zenoh_rows = self.inputs.imu_samples(0.0 if serial is not None else 0.02)
+        return zenoh_rows if serial is None else np.concatenate((serial, zenoh_rows))
 
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
         """One pass of the loop: read, check, align, publish; returns the records published."""
         samples = self._read_inputs()
-        if samples:
+        if len(samples):
             self._last_input = time.monotonic()
         records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs())
         self.outputs.records(records)

@@ -8,7 +8,7 @@ so one byte stream gives the same records and counters in whatever pieces it is 
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -24,7 +24,7 @@ from .align.earth import Site
 from .config import Config
 from .pipeline import AlignmentPipeline, build_pipeline
 from .restarting import RestartingPipeline
-from .sample_gate import Sample, SampleGate
+from .sample_gate import SampleGate, sample_rows
 
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
@@ -103,9 +103,9 @@ class Ingest:
         self.alignment.restart()
 
     # ---- inputs -------------------------------------------------------------------------
-    def decode_serial(self, data: bytes) -> list[Sample]:
-        """The IMU samples of the frames ``data`` completes (any piece of the serial stream); its aiding frames go
-        to :attr:`aiding_inbox`."""
+    def decode_serial(self, data: bytes) -> np.ndarray:
+        """The IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`) of the frames ``data`` completes (any piece of
+        the serial stream); its aiding frames go to :attr:`aiding_inbox`."""
         out = []
         for frame in self.decoder.feed(data):
             if frame.msg_type == MSG_IMU:
@@ -114,7 +114,7 @@ class Ingest:
             elif frame.msg_type == MSG_AIDING:
                 self._take_aiding(frame)
         self.counters.samples_in_serial += len(out)
-        return out
+        return sample_rows(out)
 
     def _take_aiding(self, frame: Frame) -> None:
         try:
@@ -144,13 +144,14 @@ class Ingest:
         """Serial bytes as a read gave them (any piece of the stream) → the records they complete."""
         return self.feed_samples(self.decode_serial(data))
 
-    def feed_samples(self, samples: Sequence[Sample],
+    def feed_samples(self, samples: np.ndarray,
                      epochs: Iterable[tuple[str, messages.AidingSample]] = ()) -> list[ResultRecord]:
-        """Decoded samples of one pass, in arrival order, and the aiding ``epochs`` that came with them from other
-        than the serial port (after the serial ones, into their tracks) → the records they complete. Without samples,
-        aiding that came after the last ones lets those waiting for it go."""
+        """Decoded samples of one pass (N, :data:`~.sample_gate.SAMPLE_COLUMNS`), in arrival order, and the aiding
+        ``epochs`` that came with them from other than the serial port (after the serial ones, into their tracks) →
+        the records they complete. Without samples, aiding that came after the last ones lets those waiting for it
+        go."""
         self._take_aiding_epochs(epochs)
-        if not samples:
+        if len(samples) == 0:
             return self._feed(None) if self._wait is not None and self._wait.held else []
         records: list[ResultRecord] = []
         self.counters.samples_in += len(samples)

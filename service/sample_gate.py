@@ -19,7 +19,7 @@ velocity from the integrals, and a clipped one puts a wrong one in. So, per deco
 """
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,8 +27,15 @@ import numpy as np
 from ..protocol.counters import Counters
 from ..protocol.imu_log import MAX_TIME_S
 
-Sample = tuple[float, tuple, tuple, int, bool]
-"""A decoded IMU sample: t (s), Δθ (3,) rad, Δv (3,) m/s, status word, saturated (a value at full scale)."""
+SAMPLE_COLUMNS = 9
+"""The one row a decoded IMU sample travels in from every decoder to the pipeline: t (s), Δθ (3) rad, Δv (3) m/s,
+the status word, saturated (1.0: a value at full scale). A u32 status word is exact in a float64."""
+
+
+def sample_rows(samples: Iterable[tuple[float, Sequence[float], Sequence[float], int, bool]]) -> np.ndarray:
+    """Decoded samples (t, Δθ, Δv, status, saturated), one tuple each, as rows (N, :data:`SAMPLE_COLUMNS`)."""
+    rows = [(t, *dtheta, *dv, status, saturated) for t, dtheta, dv, status, saturated in samples]
+    return np.array(rows, dtype=float).reshape(-1, SAMPLE_COLUMNS)
 
 
 @dataclass(slots=True)
@@ -67,17 +74,16 @@ class SampleGate:
     _restart_reason: str | None = None   # a cut no segment has carried yet: why the next segment restarts
     _behind: list[np.ndarray] = field(default_factory=list)   # samples in a row behind _last, in time order
 
-    def admit(self, samples: Iterable[Sample]) -> list[Segment]:
-        """Decoded samples in arrival order → segments to align; a segment carries the restart of every cut since the
-        previous segment, whichever call made it."""
+    def admit(self, samples: np.ndarray) -> list[Segment]:
+        """Decoded samples (N, :data:`SAMPLE_COLUMNS`) in arrival order → segments to align; a segment carries the
+        restart of every cut since the previous segment, whichever call made it."""
         dt = 1.0 / self.rate_hz
         segments: list[Segment] = []
         rows: list[np.ndarray] = []
-        samples = list(samples)
-        if not samples:
+        if len(samples) == 0:
             return segments
-        block = np.array([(t, *dtheta, *dv) for t, dtheta, dv, _, _ in samples], dtype=float)
-        flags = np.array([(status, saturated) for *_, status, saturated in samples], dtype=np.int64)
+        block = samples[:, :7]
+        flags = samples[:, 7:9].astype(np.int64)
         dtheta_max, dv_max = np.abs(block[:, 1:4]).max(axis=1), np.abs(block[:, 4:7]).max(axis=1)
         # a time no clock reads; beyond the range, no sensor's value (a frame flagged saturated is the sensor at full
         # scale: a restart, below)

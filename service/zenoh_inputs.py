@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import numpy as np
 import zenoh
 
 from ..protocol import messages
@@ -16,7 +17,7 @@ from ..protocol.keys import UnitKeys
 from ..protocol.sequence import SequenceTracker
 from .inbox import Inbox
 from .ingest import SampleCounters
-from .sample_gate import Sample
+from .sample_gate import sample_rows
 
 INBOX_LIMIT = 100_000
 """Messages each Zenoh inbox holds for the loop (8 minutes of a 200-Hz IMU)."""
@@ -53,11 +54,12 @@ class ZenohInputs:
             self._aid_inbox.put((kind, sample.payload), len(sample.payload))
         return on_aid
 
-    def imu_samples(self, wait_s: float) -> list[Sample]:
-        """The IMU samples that arrived (waiting up to ``wait_s`` for the first), decoded, in arrival order; a
-        message that does not decode, or comes again or from the past, is dropped and counted."""
+    def imu_samples(self, wait_s: float) -> np.ndarray:
+        """The IMU samples that arrived (waiting up to ``wait_s`` for the first), decoded, in arrival order (N,
+        :data:`~.sample_gate.SAMPLE_COLUMNS`); a message that does not decode, or comes again or from the past, is
+        dropped and counted."""
         if self._imu_sub is None:
-            return []
+            return sample_rows([])
         out = []
         for payload in self._imu_inbox.drain(wait_s):
             try:
@@ -69,7 +71,7 @@ class ZenohInputs:
             if self.sequence.accept(m.seq):
                 out.append((m.t, m.dtheta, m.dv, m.status, False))
         self._counters.samples_in_zenoh += len(out)
-        return out
+        return sample_rows(out)
 
     def aiding_epochs(self) -> list[tuple[str, messages.AidingSample]]:
         """Every aiding epoch that arrived, decoded, in arrival order; a bad one counted and dropped."""

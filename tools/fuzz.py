@@ -484,9 +484,10 @@ def _jumps(rng: np.random.Generator, n: int, exponents: tuple[float, float] = TI
 
 @dataclass(frozen=True, slots=True)
 class HostileStream:
-    """Samples as a decoder hands them over (t, Δθ, Δv, status, saturated), with the faults planted in them."""
+    """Samples as a decoder hands them over, with the faults planted in them."""
 
-    samples: list[tuple[float, tuple, tuple, int, bool]]
+    samples: np.ndarray
+    """(N, :data:`~sinsalign.service.sample_gate.SAMPLE_COLUMNS`): t, Δθ, Δv, status, saturated."""
     tail_start: int
     """Index of the first sample after the last fault."""
     faults: list[tuple[int, str]]
@@ -509,9 +510,7 @@ def hostile_stream(rng: np.random.Generator, imu: SimulatedImu, max_dtheta: floa
     status[faulted["status"]] = rng.integers(1, 2**32, len(faulted["status"]))
     saturated[faulted["saturated"]] = True
     order = np.repeat(np.arange(n), _copies(rng, n, faulted))
-    dtheta, dv = values[order, :3].tolist(), values[order, 3:].tolist()
-    samples = list(zip(t[order].tolist(), map(tuple, dtheta), map(tuple, dv), status[order].tolist(),
-                       saturated[order].tolist(), strict=True))
+    samples = np.column_stack((t[order], values[order], status[order], saturated[order]))
     return HostileStream(samples, int(np.searchsorted(order, n - TAIL_SAMPLES)),
                          [(first + int(k), SAMPLE_FAULTS[c]) for k, c in zip(at, kind, strict=True)])
 

@@ -21,7 +21,7 @@ from sinsalign.protocol.results import ResultRecord
 from sinsalign.protocol.serial_frame import STATUS_GYRO_FAULT, encode_aiding, encode_frame, encode_imu
 from sinsalign.service.config import config_from_mapping
 from sinsalign.service.ingest import Ingest
-from sinsalign.service.sample_gate import Sample, SampleGate, Segment
+from sinsalign.service.sample_gate import SampleGate, Segment, sample_rows
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import daemon_sections, seed_run
 
@@ -30,7 +30,7 @@ GATE_RATE_HZ = 200.0
 FULL_SCALE = (5.0, 0.0, 0.0)   # rad in one sample: beyond the wire's full scale, as decode_imu flags it
 
 
-def sample(k: int, saturated: bool = False, t: float | None = None) -> Sample:
+def sample(k: int, saturated: bool = False, t: float | None = None) -> tuple:
     """Sample k of a quiet 200-Hz base: t = k / 200 s (unless given), small increments."""
     t = k / GATE_RATE_HZ if t is None else t
     return (t, FULL_SCALE if saturated else (1e-6 * k, 0.0, 0.0), (0.0, 0.0, 0.05 * k), 0, saturated)
@@ -38,18 +38,18 @@ def sample(k: int, saturated: bool = False, t: float | None = None) -> Sample:
 
 def test_a_saturated_sample_alone_in_its_call_restarts_the_segment_the_next_call_begins():
     gate = SampleGate(GATE_RATE_HZ)
-    (first,) = gate.admit([sample(k) for k in range(1, 4)])
+    (first,) = gate.admit(sample_rows([sample(k) for k in range(1, 4)]))
     assert not first.restart
-    assert gate.admit([sample(4, saturated=True)]) == []    # a real IMU's pacing: the frame came in a read alone
-    (after,) = gate.admit([sample(5)])
+    assert gate.admit(sample_rows([sample(4, saturated=True)])) == []   # a real IMU's pacing: the frame alone in a read
+    (after,) = gate.admit(sample_rows([sample(5)]))
     assert after.restart and after.reason == "saturated sample at t = 0.020000 s: alignment restarted"
     assert after.rows[:, 0].tolist() == [5 / GATE_RATE_HZ]
-    (later,) = gate.admit([sample(6), sample(7)])
+    (later,) = gate.admit(sample_rows([sample(6), sample(7)]))
     assert not later.restart and later.reason is None        # one restart, carried once
     assert (gate.counters.saturated, gate.counters.restarts) == (1, 1)
 
 
-GATE_STREAMS: dict[str, list[Sample]] = {
+GATE_STREAMS: dict[str, list[tuple]] = {
     "saturated sample last of a call": [sample(1), sample(2), sample(3, saturated=True), sample(4), sample(5)],
     "two saturated samples in a row": [sample(1), sample(2, saturated=True), sample(3, saturated=True), sample(4),
                                        sample(5)],
@@ -84,9 +84,9 @@ def alignment_runs(segments: Iterable[Segment]) -> list[tuple[str | None, list[l
     return runs
 
 
-def admitted_in_calls(calls: list[list[Sample]]) -> tuple[list, dict[str, int], str | None]:
+def admitted_in_calls(calls: list[list[tuple]]) -> tuple[list, dict[str, int], str | None]:
     gate = SampleGate(GATE_RATE_HZ, max_bridge_samples=5)
-    segments = [segment for call in calls for segment in gate.admit(call)]
+    segments = [segment for call in calls for segment in gate.admit(sample_rows(call))]
     return alignment_runs(segments), gate.counters.as_dict(), gate.last_error
 
 

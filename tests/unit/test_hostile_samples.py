@@ -34,8 +34,9 @@ def live_ingest(tmp_path, reports: list[str]) -> Ingest:
     return Ingest(config, reports.append)
 
 
-def as_samples(t, dtheta, dv) -> list:
-    return [(float(t[k]), tuple(dtheta[k]), tuple(dv[k]), 0, False) for k in range(len(t))]
+def as_samples(t, dtheta, dv) -> np.ndarray:
+    """Rows as a decoder hands them over: status 0, none saturated."""
+    return np.column_stack((t, dtheta, dv, np.zeros((len(t), 2))))
 
 
 def feed_in_pieces(ingest: Ingest, samples: list, piece: int = 97) -> list:
@@ -107,7 +108,7 @@ def test_a_clock_that_goes_back_restarts_the_alignment_and_a_wild_time_stamp_cos
 def test_a_repeated_sample_is_still_a_counted_drop(tmp_path, data):
     t, dtheta, dv = data
     samples = as_samples(t, dtheta, dv)
-    samples.insert(200, samples[199])
+    samples = np.insert(samples, 200, samples[199], axis=0)
     ingest = live_ingest(tmp_path, [])
     feed_in_pieces(ingest, samples)
     counters = ingest.all_counters()
