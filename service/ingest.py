@@ -1,9 +1,9 @@
 """The daemon's path from received data to attitude records, without its I/O: decoder → sample gate → pipeline.
 
-Serial bytes go through the frame decoder (IMU samples out, aiding epochs to their tracks), every
-decoded sample through the :class:`~.sample_gate.SampleGate`, and what it admits into the
-alignment pipeline (in an aided mode after the :class:`~.aiding.AidingWait`); a restart the gate
-asks for starts a fresh pipeline whose counts carry on. Every stage keeps its state between calls,
+Serial bytes go through the serial format's decoder (serial_formats.py: IMU samples out, aiding epochs to their
+tracks), every decoded sample through the :class:`~.sample_gate.SampleGate`, and what it admits into the alignment
+pipeline (in an aided mode after the :class:`~.aiding.AidingWait`); a restart the gate asks for starts a fresh
+pipeline whose counts carry on. Every stage keeps its state between calls,
 so one byte stream gives the same records and counters in whatever pieces it is read.
 """
 from __future__ import annotations
@@ -17,14 +17,14 @@ from ..protocol import messages
 from ..protocol.counters import Counters
 from ..protocol.imu_log import G0_MS2, RANGE_INTERVALS
 from ..protocol.results import ResultRecord
-from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, Frame, FrameDecoder, decode_aiding, decode_imu
 from .aiding import AidingTrack, AidingWait
 from .align.conventions import DEG
 from .align.earth import Site
 from .config import Config
 from .pipeline import AlignmentPipeline, build_pipeline
 from .restarting import RestartingPipeline
-from .sample_gate import SampleGate, sample_rows
+from .sample_gate import SampleGate
+from .serial_formats import SerialFormat, SinsalignFrames
 
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
@@ -56,13 +56,15 @@ class SampleCounters(Counters):
 
 
 class Ingest:
-    """Decoder, sample gate, aiding tracks and pipeline of one daemon, fed by :meth:`feed_bytes` (serial bytes) or
-    :meth:`feed_samples` (samples decoded from any input); ``report`` gets every event for the operator (once each),
-    ``record_rows`` every admitted row (N, 7: t in s, Δθ in rad, Δv in m/s) before the pipeline takes it."""
+    """Decoder, sample gate, aiding tracks and pipeline of one daemon, fed by :meth:`feed_bytes` (serial bytes in
+    ``serial_format``, the project's own frame by default) or :meth:`feed_samples` (samples decoded from any input);
+    ``report`` gets every event for the operator (once each), ``record_rows`` every admitted row (N, 7: t in s, Δθ in
+    rad, Δv in m/s) before the pipeline takes it."""
 
     def __init__(self, config: Config, report: Callable[[str], None],
                  record_rows: Callable[[np.ndarray], None] | None = None,
-                 record_restart: Callable[[str], None] | None = None) -> None:
+                 record_restart: Callable[[str], None] | None = None,
+                 serial_format: SerialFormat | None = None) -> None:
         self.config = config
         s = config.site
         self.site = Site(s.lat_deg * DEG, s.lon_deg * DEG, s.height_m)
@@ -74,7 +76,7 @@ class Ingest:
         self._wait = (AidingWait([self.tracks[kind] for kind in self.pipeline.aid_kinds], ad.max_wait_s)
                       if self.pipeline.aid_width else None)
         self.gate = gate_for(config)
-        self.decoder = FrameDecoder()
+        self.serial_format = serial_format or SinsalignFrames()
         self.counters = SampleCounters()
         # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival order, not yet
         # in its track; :meth:`feed_samples` takes them. At most AIDING_INBOX_LIMIT are held (the rest:
@@ -104,30 +106,20 @@ class Ingest:
 
     # ---- inputs -------------------------------------------------------------------------
     def decode_serial(self, data: bytes) -> np.ndarray:
-        """The IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`) of the frames ``data`` completes (any piece of
-        the serial stream); its aiding frames go to :attr:`aiding_inbox`."""
-        out = []
-        for frame in self.decoder.feed(data):
-            if frame.msg_type == MSG_IMU:
-                m = decode_imu(frame)
-                out.append((m.t, m.dtheta, m.dv, m.status, m.saturated))
-            elif frame.msg_type == MSG_AIDING:
-                self._take_aiding(frame)
-        self.counters.samples_in_serial += len(out)
-        return sample_rows(out)
-
-    def _take_aiding(self, frame: Frame) -> None:
-        try:
-            epoch = decode_aiding(frame)
-        except messages.MessageError as exc:
+        """The IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`) that ``data`` completes (any piece of the serial
+        stream, in the configured format); its aiding epochs go to :attr:`aiding_inbox`."""
+        decoded = self.serial_format.feed(data)
+        for text in decoded.refused:
             self.counters.bad_aiding += 1
-            self._report(f"serial aiding frame dropped: {exc}")
-            return
-        self.counters.aiding_frames += 1
-        if len(self.aiding_inbox) >= AIDING_INBOX_LIMIT:
-            self.counters.inbox_overflow += 1
-            return
-        self.aiding_inbox.append((epoch.kind, epoch))
+            self._report(text)
+        for epoch in decoded.aiding:
+            self.counters.aiding_frames += 1
+            if len(self.aiding_inbox) >= AIDING_INBOX_LIMIT:
+                self.counters.inbox_overflow += 1
+            else:
+                self.aiding_inbox.append((epoch.kind, epoch))
+        self.counters.samples_in_serial += len(decoded.samples)
+        return decoded.samples
 
     def _take_aiding_epochs(self, epochs: Iterable[tuple[str, messages.AidingSample]]) -> None:
         """The serial aiding epochs held, then ``epochs`` (another input's), each into its kind's track; others
@@ -197,7 +189,7 @@ class Ingest:
     def all_counters(self) -> dict[str, int]:
         """Decoder, sample, gate, pipeline (summed over restarts) and aiding track counters, by status name."""
         pipeline_counts = self.alignment.counters()
-        counters = {**self.decoder.all_counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
+        counters = {**self.serial_format.counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
                     **pipeline_counts}
         for kind, track in self.tracks.items():
             counters |= track.counters.as_dict(f"{kind}_")

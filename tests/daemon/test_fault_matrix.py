@@ -132,7 +132,7 @@ PACED = 5
 def write_alone(bench: Bench, raw: bytes, written: int) -> None:
     """One frame as its own write once the daemon has decoded the ``written`` frames before it: a read brings it
     alone, as every frame at a real IMU's pace."""
-    decoder = bench.daemon.ingest.decoder
+    decoder = bench.daemon.ingest.serial_format.decoder
     deadline = time.monotonic() + 5
     while decoder.counters.frames < written and time.monotonic() < deadline:
         time.sleep(0.001)
