@@ -3,6 +3,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+SEQUENCE_DOCS = {"gaps": "frames or messages missing between accepted ones (from the sequence counter)",
+                 "repeats": "the previous sequence counter again (dropped)",
+                 "backwards": "a sequence counter from the past (dropped)",
+                 "resets": "the sender restarted its counter (three from the past in a row: followed)"}
+"""What each sequence counter counts (status names ``seq_*`` for serial IMU frames, ``aiding_seq_*`` for serial
+aiding frames, ``zenoh_seq_*`` for Zenoh IMU messages)."""
 RESET_RUN = 3
 """Consecutive counters from the "past" after which the sender is taken to have restarted."""
 

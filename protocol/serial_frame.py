@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .counters import Counters
+from .counters import Counters, count
 from .messages import AIDING_FIELDS, AidingSample, MessageError
 from .plausibility import aiding_problem
 from .sequence import SequenceTracker
@@ -190,9 +190,9 @@ def decode_aiding(frame: Frame) -> AidingSample:
     flat = struct.unpack_from(f"<{AIDING_VALUES[kind]}d", payload, 1)
     values: dict[str, tuple[float, ...]] = {}
     at = 0
-    for name, count in AIDING_FIELDS[kind].items():
-        values[name] = flat[at:at + count]
-        at += count
+    for name, width in AIDING_FIELDS[kind].items():
+        values[name] = flat[at:at + width]
+        at += width
         if not all(math.isfinite(v) for v in values[name]):
             raise AidingPayloadError(f"aiding {kind}: {name} not finite {values[name]}")
     problem = aiding_problem(kind, values)
@@ -205,13 +205,13 @@ def decode_aiding(frame: Frame) -> AidingSample:
 class DecoderCounters(Counters):
     """What the decoder saw: good frames and every kind of drop."""
 
-    frames: int = 0
-    bytes_skipped: int = 0       # bytes outside any frame (garbage, resynchronisation)
-    bad_header: int = 0          # a sync word whose header check fails (false sync, corrupt header)
-    bad_crc: int = 0
-    bad_length: int = 0          # a length field no message type allows
-    bad_version: int = 0
-    unknown_type: int = 0        # well-formed frames of a type this daemon does not handle (not dropped)
+    frames: int = count("valid frames, in sequence")
+    bytes_skipped: int = count("bytes outside any frame (garbage, resynchronisation)")
+    bad_header: int = count("a sync word whose header check fails (false sync, corrupt header)")
+    bad_crc: int = count("frames whose CRC-32 fails")
+    bad_length: int = count("a length field no message type allows")
+    bad_version: int = count("frames of another protocol version")
+    unknown_type: int = count("well-formed frames of a type this daemon does not handle (passed on, not dropped)")
 
 
 
@@ -293,6 +293,6 @@ class FrameDecoder:
         """Decoder and sequence counters in one map (the status topic's names)."""
         aiding: dict[str, int] = SequenceTracker().counters("aiding_seq_")
         for tracker in self.aiding_sequences.values():
-            for name, count in tracker.counters("aiding_seq_").items():
-                aiding[name] += count
+            for name, seen in tracker.counters("aiding_seq_").items():
+                aiding[name] += seen
         return {**self.counters.as_dict(), **self.sequence.counters(), **aiding}

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..protocol.aiding_log import KINDS
-from ..protocol.counters import Counters
+from ..protocol.counters import Counters, count
 from ..protocol.imu_log import IMU_WIDTH
 
 if TYPE_CHECKING:
@@ -51,13 +51,15 @@ def with_room(buffer: np.ndarray, rows: int, limit: int | None = None) -> np.nda
 
 @dataclass(slots=True)
 class AidingCounters(Counters):
-    epochs: int = 0
-    repeats: int = 0
-    out_of_order: int = 0
-    non_finite: int = 0
-    gaps: int = 0                 # epochs that follow the previous one by a gap (see the module docstring)
-    unaided_queries: int = 0      # IMU times asked for without two epochs around them
-    overflow: int = 0             # epochs dropped because the track was full (the aiding far ahead of the IMU)
+    """What one aiding stream's track saw (status names prefixed by the kind: ``gnss_epochs``)."""
+
+    epochs: int = count("epochs the track took")
+    repeats: int = count("epochs with the time of the one before (dropped)")
+    out_of_order: int = count("epochs before the one before (dropped)")
+    non_finite: int = count("epochs with a non-finite value (dropped)")
+    gaps: int = count("epochs that follow the previous one by a gap (not interpolated across)")
+    unaided_queries: int = count("IMU times asked for without two epochs around them")
+    overflow: int = count("epochs dropped because the track was full (the aiding far ahead of the IMU)")
 
 
 MAX_HELD_EPOCHS = 1 << 16

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..protocol import messages
-from ..protocol.counters import Counters
+from ..protocol.counters import Counters, count
 from ..protocol.imu_log import G0_MS2, RANGE_INTERVALS
 from ..protocol.results import ResultRecord
 from .aiding import AidingTrack, AidingWait
@@ -42,17 +42,18 @@ def gate_for(config: Config) -> SampleGate:
 class SampleCounters(Counters):
     """Checks on decoded samples, whatever their input."""
 
-    samples_in: int = 0
-    samples_in_serial: int = 0      # of samples_in, decoded from serial IMU frames
-    samples_in_zenoh: int = 0       # of samples_in, from the Zenoh IMU topic
-    samples_used: int = 0
-    aiding_frames: int = 0          # valid serial aiding epochs (type 2) received
-    bad_aiding: int = 0             # type-2 payloads decode_aiding rejected (unknown kind, length, non-finite)
-    bad_messages: int = 0
-    aiding_unused: int = 0          # aiding epochs of a kind the configuration does not use
-    inbox_overflow: int = 0
-    records_published: int = 0
-    internal_errors: int = 0
+    samples_in: int = count("IMU samples decoded, from every input")
+    samples_in_serial: int = count("of samples_in, decoded from serial IMU frames")
+    samples_in_zenoh: int = count("of samples_in, from the Zenoh IMU topic")
+    samples_used: int = count("samples the gate admitted into the alignment")
+    aiding_frames: int = count("valid serial aiding epochs (type 2) received")
+    bad_aiding: int = count("aiding epochs refused for what they hold (unknown kind, length, non-finite, beyond what "
+                            "a sensor reports), serial or Zenoh")
+    bad_messages: int = count("Zenoh IMU messages refused (not msgpack, wrong fields, non-finite)")
+    aiding_unused: int = count("aiding epochs of a kind the configuration does not take")
+    inbox_overflow: int = count("messages or aiding epochs dropped because an inbox was full")
+    records_published: int = count("attitude records published")
+    internal_errors: int = count("exceptions in the loop (a bug: logged with its traceback, the loop goes on)")
 
 
 class Ingest:

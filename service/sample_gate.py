@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..protocol.counters import Counters
+from ..protocol.counters import Counters, count
 from ..protocol.imu_log import MAX_TIME_S
 
 SAMPLE_COLUMNS = 9
@@ -40,14 +40,14 @@ def sample_rows(samples: Iterable[tuple[float, Sequence[float], Sequence[float],
 
 @dataclass(slots=True)
 class GateCounters(Counters):
-    time_not_increasing: int = 0
-    samples_bridged: int = 0
-    gaps_bridged: int = 0
-    restarts: int = 0
-    saturated: int = 0
-    status_flagged: int = 0
-    implausible: int = 0
-    clock_resets: int = 0
+    time_not_increasing: int = count("samples dropped: their time did not follow the sample before")
+    samples_bridged: int = count("missing samples interpolated between their neighbours")
+    gaps_bridged: int = count("gaps of up to daemon.max_bridge_samples so bridged")
+    restarts: int = count("alignment restarts the gate asked for (a longer gap, a saturated sample, a clock reset)")
+    saturated: int = count("samples at full scale (not used: a restart)")
+    status_flagged: int = count("samples with a non-zero IMU status word (used)")
+    implausible: int = count("samples dropped for a time no clock reads or an increment beyond the IMU's range")
+    clock_resets: int = count("the IMU's clock went back (samples in a row behind the last one): a restart")
 
 
 @dataclass(slots=True)

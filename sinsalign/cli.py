@@ -265,8 +265,14 @@ def cmd_soak(args: argparse.Namespace) -> int:
 
 
 def cmd_config(args: argparse.Namespace) -> int:
-    from sinsalign.service.config import config_toml, load_config, reference_markdown
-    print(reference_markdown() if args.reference else config_toml(load_config(args.config)), end="")
+    from sinsalign.service.config import config_toml, load_config
+    print(config_toml(load_config(args.config)), end="")
+    return 0
+
+
+def cmd_reference(args: argparse.Namespace) -> int:
+    from sinsalign.tools.reference import SECTIONS, reference
+    print("\n".join(reference(section) for section in ([args.section] if args.section else SECTIONS)), end="")
     return 0
 
 
@@ -313,8 +319,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Process IMU.csv (pinned log format) and write one JSON object per output epoch "
                        "(t on whole multiples of the output period) with q, Euler angles, heading/level σ, "
                        "phase and converged. A malformed log stops with the file, line and column named.")
-    p.add_argument("imu_csv", metavar="IMU.csv")
-    p.add_argument("--out", required=True, metavar="RESULTS.jsonl")
+    p.add_argument("imu_csv", metavar="IMU.csv", help="the IMU log (pinned CSV: docs/reference.md, 'IMU log format')")
+    p.add_argument("--out", required=True, metavar="RESULTS.jsonl",
+                   help="the results, one JSON object per output epoch")
     p.add_argument("--period", type=float, metavar="S", help="output period (default 1 s)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--aid", action="append", metavar="KIND=FILE",
@@ -341,7 +348,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the same flight with 50/10/5/1-Hz receivers (120 s: accuracy, σ honesty, gaps), or "
                    "seed002-rates for the transfer alignment with the master INS at 10/5/2/1 Hz")
     p.add_argument("--seeds", type=POSITIVE_INT, default=20, help="number of seeds (default 20)")
-    p.add_argument("--first-seed", type=SEED, default=0)
+    p.add_argument("--first-seed", type=SEED, default=0, help="the first seed (default 0; the others follow it)")
     p.add_argument("--seed-sets", type=POSITIVE_INT, default=1, metavar="K",
                    help="run K disjoint sets of --seeds seeds and add a table of the last window per set (how much a "
                    "20-seed figure moves with the seeds; the docs' tables: --seeds 20 --seed-sets 5)")
@@ -351,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the last window's error budget: which error the heading's figures come from")
     p.add_argument("--fine", action="store_true", help="also run seed 001's comparison: OPREQ only, compass alone "
                    "from 1.5°, OPREQ → compass, each with and without stored data; table and plot")
-    p.add_argument("--out-dir", default="out/eval")
+    p.add_argument("--out-dir", default="out/eval", help="where the table (NAME.md) and plot go (default out/eval)")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_eval)
 
@@ -395,7 +402,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "the printed NAME within --start-delay seconds.")
     p.add_argument("--scenario", default="seed000-swing", help="simulated scenario (sinsalign sim --list)")
     p.add_argument("--log", metavar="IMU.csv", help="play this IMU log instead of a scenario")
-    p.add_argument("--seed", type=SEED, default=1)
+    p.add_argument("--seed", type=SEED, default=1, help="the scenario's seed (default 1: what sim, demo play too)")
     p.add_argument("--duration", type=POSITIVE, metavar="S", help="scenario length (default: the scenario's)")
     p.add_argument("--speed", type=POSITIVE, default=1.0, help="× real time (default 1)")
     p.add_argument("--port", metavar="PATH", help="write to this serial device instead of a new pty")
@@ -421,7 +428,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--values", type=POSITIVE_INT, default=4_000_000, metavar="N",
                    help="values generated for the sample stream (35 %%), the replayed logs (45 %%) and the "
                    "configuration (20 %%) (default 4000000)")
-    p.add_argument("--seed", type=SEED, default=0)
+    p.add_argument("--seed", type=SEED, default=0, help="random seed of the generated input (default 0)")
     p.add_argument("--out", metavar="FILE", help="also write the table to FILE")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (default: on a terminal)")
     p.set_defaults(func=cmd_fuzz)
@@ -430,18 +437,23 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Run 'sinsalign serve' in its own process on a pty and write HOURS of 200-Hz "
                        "frames (static base with noise, generated on the fly) as fast as it reads them; report "
                        "the daemon's RSS and the 1-Hz attitude latency every REPORT_EVERY simulated seconds.")
-    p.add_argument("--hours", type=POSITIVE, default=24.0)
+    p.add_argument("--hours", type=POSITIVE, default=24.0, help="hours of simulated data (default 24)")
     p.add_argument("--report-every", type=POSITIVE, default=3600.0, metavar="S", help="simulated seconds per report")
     p.set_defaults(func=cmd_soak)
 
-    p = sub.add_parser("config", help="print the configuration in effect as TOML, or the reference of every key",
+    p = sub.add_parser("config", help="print the configuration in effect as TOML",
                        description="Print every key with its value after the defaults and --config FILE (validated: "
                        "a wrong key or value is the same one-line error as at a start), as a TOML file --config "
-                       "takes back; with --reference, the Markdown reference of every key: its table, default, "
-                       "bounds and meaning (docs/reference.md, 'Configuration').")
+                       "takes back. Every key's meaning and bounds: sinsalign reference config.")
     p.add_argument("--config", metavar="FILE", help="TOML configuration to validate and show")
-    p.add_argument("--reference", action="store_true", help="the reference of every key instead")
     p.set_defaults(func=cmd_config)
+
+    p = sub.add_parser("reference", help="print the reference of the command line, the configuration or the counters",
+                       description="Print, as Markdown, the generated parts of docs/reference.md: every subcommand "
+                       "and option (cli), every configuration key with its default, bounds and meaning (config), "
+                       "every status counter with what it counts and whether a rise is a fault (counters).")
+    p.add_argument("section", nargs="?", choices=("cli", "config", "counters"), help="one section (default: all)")
+    p.set_defaults(func=cmd_reference)
 
     p = sub.add_parser("watch", help="live terminal view of every unit: attitude, σ, phase, counters",
                        description="Subscribe to <prefix>/*/attitude and status (with --unit: that unit's) and "
@@ -456,8 +468,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Play a simulated scenario as serial frames into a pty, run the daemon on it "
                        "(Zenoh peer on loopback, multicast off), watch it live, and end with the heading error "
                        "against the simulated truth and the run's physical limit.")
-    p.add_argument("--scenario", default="seed000-swing")
-    p.add_argument("--seed", type=SEED, default=1)
+    p.add_argument("--scenario", default="seed000-swing",
+                   help="scenario to play (sinsalign sim --list; default seed000-swing)")
+    p.add_argument("--seed", type=SEED, default=1, help="its seed (default 1)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--speed", type=POSITIVE, default=10.0, help="× real time (default 10: 200 s in 20 s)")
     pace.add_argument("--realtime", action="store_true", help="play at real time (same as --speed 1)")
