@@ -176,7 +176,7 @@ def _zenoh_overrides(args: argparse.Namespace) -> dict:
 
 def _add_zenoh_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("Zenoh (defaults: peer on loopback tcp/127.0.0.1:7447, multicast scouting off)")
-    g.add_argument("-m", "--mode", choices=("peer", "client", "router"), help="session mode")
+    g.add_argument("-m", "--mode", choices=("peer", "client", "router"), help="Zenoh connection mode")
     g.add_argument("-e", "--connect", action="append", metavar="ENDPOINT", help="endpoint to connect to, e.g. "
                    "tcp/10.0.0.5:7447 (repeatable)")
     g.add_argument("-l", "--listen", action="append", metavar="ENDPOINT", help="endpoint to listen on (repeatable)")
@@ -358,7 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "the last window's error budget: which error the heading's figures come from")
     p.add_argument("--fine", action="store_true", help="also run seed 001's comparison: OPREQ only, compass alone "
                    "from 1.5°, OPREQ → compass, each with and without stored data; table and plot")
-    p.add_argument("--out-dir", default="out/eval", help="where the table (NAME.md) and plot go (default out/eval)")
+    p.add_argument("--out-dir", default="out/eval", help="where the Markdown table and its plot go (default out/eval)")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_eval)
 
