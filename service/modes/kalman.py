@@ -41,6 +41,7 @@ class KalmanMode:
 
     def __init__(self, pipeline: AlignmentPipeline) -> None:
         self.p = pipeline
+        self._kind_index = {kind: i for i, (kind, _) in enumerate(self.aids)}   # each kind's column in ``fresh``
 
     def make_coarse(self) -> InertialCoarseAlignment:
         raise NotImplementedError
@@ -67,9 +68,8 @@ class KalmanMode:
             return False
         fine.predict(dalpha, dt_s, C_b_b0)
         if aid is not None and fresh.any():
-            kinds = [kind for kind, _ in self.aids]
             for kind, name, value in self.measurements(aid):
-                if fresh[kinds.index(kind)] and np.isfinite(value).all():
+                if fresh[self._kind_index[kind]] and np.isfinite(value).all():
                     fine.update(name, value)
         return True
 

@@ -541,9 +541,14 @@ ENDINGS = st.sampled_from(["", "1", "#", "1" * 5000])
 """What follows the last row: nothing, a line cut short, a comment cut short, a line too long."""
 
 
+LOG_CASES = {"keys": st.dictionaries(COMMENT_KEY, NUMBER_TEXT, max_size=8),
+             "cells": st.lists(st.lists(CELL, min_size=10, max_size=10), max_size=6),
+             "kind": st.sampled_from([None, *KINDS]), "ending": ENDINGS}
+"""A log's comment keys, rows of cells, kind (None: an IMU log) and ending."""
+
+
 @PROPERTY
-@given(keys=st.dictionaries(COMMENT_KEY, NUMBER_TEXT, max_size=8), cells=st.lists(st.lists(CELL, min_size=10,
-       max_size=10), max_size=6), kind=st.sampled_from([None, *KINDS]), ending=ENDINGS)
+@given(**LOG_CASES)
 def test_logs_at_the_limits_read_or_say_why(tmp_path: Path, keys: dict[str, str], cells: list[list[str]],
                                             kind: str | None, ending: str) -> None:
     reads_or_refuses(tmp_path, {**HEADER, **keys} if kind is None else keys, cells, kind, ending)
@@ -551,8 +556,7 @@ def test_logs_at_the_limits_read_or_say_why(tmp_path: Path, keys: dict[str, str]
 
 @pytest.mark.slow
 @PROPERTY_LONG
-@given(keys=st.dictionaries(COMMENT_KEY, NUMBER_TEXT, max_size=8), cells=st.lists(st.lists(CELL, min_size=10,
-       max_size=10), max_size=6), kind=st.sampled_from([None, *KINDS]), ending=ENDINGS)
+@given(**LOG_CASES)
 def test_logs_at_the_limits_read_or_say_why_long(tmp_path: Path, keys: dict[str, str], cells: list[list[str]],
                                                  kind: str | None, ending: str) -> None:
     reads_or_refuses(tmp_path, {**HEADER, **keys} if kind is None else keys, cells, kind, ending)
