@@ -75,7 +75,7 @@ def test_oversized_payloads_on_the_input_keys_are_refused_and_the_alignment_goes
         for k in range(1, 6):
             for _ in range(20):
                 publisher.put(big)
-                if wait_until(lambda: oversized() >= k, timeout_s=0.5):
+                if wait_until(lambda k=k: oversized() >= k, timeout_s=0.5):
                     break
         publish_samples(publisher, 2000, data)
         wait_until(lambda: run.daemon.counters.samples_in_zenoh == 2000)
