@@ -27,6 +27,8 @@ from ..protocol.aiding_log import (
     POSITION_STD_RANGE,
     VELOCITY_STD_RANGE,
 )
+from ..protocol.axes import axis_map
+from ..protocol.formats import IMU_FORMATS
 from ..protocol.imu_log import (
     DATASHEET_RANGES,
     MAX_ACC_RANGE_G,
@@ -38,6 +40,7 @@ from ..protocol.imu_log import (
 )
 from ..protocol.keys import UnitKeys
 from ..protocol.messages import AIDING_FIELDS as AIDING_KINDS
+from ..protocol.stim300 import STIM300_DATAGRAMS, STIM300_DV_LSB
 from .align.compass import GainSchedule
 from .align.solvers import ALIGNMENT_SOLVERS, SOLVERS
 
@@ -92,6 +95,8 @@ def _positive(default: float, high: float, why: str, doc: str = "") -> Any:
 
 HANDOVERS = ("sigma", "time")
 GNSS_FORMULAS = ("vif", "pif")
+GNSS_INPUTS = ("sinsalign", "nmea", "ubx")
+NMEA_SENTENCES = ("THS", "HDT", "ROT", "PASHR")
 ZENOH_MODES = ("", "peer", "client", "router")
 DISTURBANCE_ACTIONS = ("restart", "report")
 LEVER = "3 numbers (body x, y, z in m)"
@@ -214,6 +219,10 @@ class GnssConfig:
                                "overrides)")
     handover_s: float = _seconds(30.0, 0.0, 3600.0, doc="the Kalman filter starts here (once the coarse heading σ "
                                  "is within fine.kalman.handover_heading_sigma_deg)")
+    input: str = _text("sinsalign", 32, "the receiver's output: the project's aiding frames and messages, NMEA "
+                       "0183 (GGA with RMC or VTG) or u-blox UBX NAV-PVT", GNSS_INPUTS)
+    serial: str = _text("", doc="the receiver's own serial port; empty: on the IMU's line")
+    baud: int = _number(115200, Range(1, 16_000_000), "its baud rate")
 
 
 @dataclass(frozen=True, slots=True)
@@ -291,15 +300,48 @@ class SiteConfig:
 
 
 @dataclass(frozen=True, slots=True)
-class ImuConfig:
-    """The live IMU: nominal sample rate (a log states its own) and its measurement ranges: an increment beyond
-    range × interval (twice, for the interval's jitter) cannot come from the sensor and is dropped as a bad sample.
-    The defaults cover MEMS and tactical units (2000°/s, 100 g); set the datasheet's. A range below 1 g could not
-    measure gravity."""
+class Stim300Config:
+    """A Sensonor STIM300 in normal mode, set to incremental angle and incremental velocity output."""
 
-    rate_hz: float = _number(200.0, RATE_RANGE, "nominal sample rate of the live input")
+    datagram: int = _number(0x93, Range(0, 255), "the datagram identifier the sensor is set to (0x90–0x93, "
+                            "0xA4–0xA7; TOML takes 0x93)")
+    acc_range_g: int = _number(10, Range(1, 100, why="g"), "the accelerometer variant (5, 10, 30 or 80 g): it sets "
+                               "the incremental velocity's scale")
+
+
+@dataclass(frozen=True, slots=True)
+class FrameConfig:
+    """A fixed-length vendor frame declared field by field (``[imu] format = "frame"``; docs/imu-formats.md)."""
+
+    sync: str = _text("", 64, "the sync bytes at the frame's start, in hex (\"FA FF 36\")")
+    length: int = _number(0, Range(0, 1024), "the whole frame in bytes, sync and checksum included")
+    endian: str = _text("little", 16, "byte order of every field", ("little", "big"))
+    fields: tuple[str, ...] = _texts((), range(65), "at most 64 fields", "after the sync bytes, in order: \"NAME "
+                                     "TYPE [SCALE]\" (NAME dtheta_x…z rad, dv_x…z m/s, gyro_x…z rad/s, acc_x…z "
+                                     "m/s², counter, status, pad, checksum; TYPE i8…i64, u8…u64, f32, f64)")
+    checksum: str = _text("none", 32, "what the checksum field holds", ("none", "crc32", "crc32-mpeg2", "crc16-ccitt",
+                                                                        "sum8", "xor8"))
+    checksum_from: int = _number(0, Range(0, 1024), "the first byte (from the frame's start) the checksum covers; it "
+                                 "covers up to the checksum field")
+
+
+@dataclass(frozen=True, slots=True)
+class ImuConfig:
+    """The live IMU: its serial format, axes, nominal sample rate (a log states its own) and its measurement ranges:
+    an increment beyond range × interval (twice, for the interval's jitter) cannot come from the sensor and is
+    dropped as a bad sample. The defaults cover MEMS and tactical units (2000°/s, 100 g); set the datasheet's. A
+    range below 1 g could not measure gravity."""
+
+    format: str = _text("sinsalign", 32, "the serial frame (CLI serve --imu-format; docs/imu-formats.md)",
+                        IMU_FORMATS)
+    axes: tuple[str, ...] = _texts(("x", "y", "z"), (3,), "3 sensor axes", "the sensor axes that are body Right, "
+                                   "Front, Up; a \"-\" prefix flips one (a right-handed set)")
+    rate_hz: float = _number(200.0, RATE_RANGE, "nominal sample rate of the live input (a counter's time stamps "
+                             "step by its period)")
     gyro_range_deg_s: float = _number(2000.0, Range(1.0, MAX_GYRO_RANGE_DEG_S, why="°/s"), "gyro measurement range")
     acc_range_g: float = _number(100.0, Range(1.0, MAX_ACC_RANGE_G, why="g"), "accelerometer measurement range")
+    stim300: Stim300Config = field(default_factory=Stim300Config)
+    frame: FrameConfig = field(default_factory=FrameConfig)
 
 
 @dataclass(frozen=True, slots=True)
@@ -338,6 +380,30 @@ class DaemonConfig:
 
 
 @dataclass(frozen=True, slots=True)
+class NmeaConfig:
+    """NMEA 0183 heading output for bridge systems, chart plotters and DP systems (docs/outputs.md); no
+    destination: none."""
+
+    udp: tuple[str, ...] = _texts((), range(17), "at most 16 destinations", "\"HOST:PORT\" destinations of UDP "
+                                  "datagrams, one sentence each (CLI serve --nmea-udp)")
+    serial: str = _text("", doc="a serial port to write the sentences to")
+    baud: int = _number(4800, Range(300, 4_000_000), "its baud rate (gyrocompass lines: 4800 or 38400)")
+    sentences: tuple[str, ...] = _texts(("THS", "ROT", "PASHR"), range(1, 5), "1 to 4 sentences", "THS, HDT (older "
+                                        "receivers), ROT, PASHR")
+    rate_hz: float = _number(1.0, Range(0.01, 50.0, why="Hz"), "sentences per second, each")
+    talker: str = _text("HE", 2, "the talker id (HE: gyrocompass, IN: integrated navigation)")
+
+
+@dataclass(frozen=True, slots=True)
+class Ros2Config:
+    """ROS 2 output through zenoh-bridge-ros2dds (docs/outputs.md)."""
+
+    enabled: bool = _flag(False, "publish sensor_msgs/msg/Imu (CDR) on <prefix>/<unit>/ros/imu (CLI serve --ros2; "
+                          "the ros2 extra)")
+    frame_id: str = _text("imu_link", 64, "the message header's frame_id")
+
+
+@dataclass(frozen=True, slots=True)
 class OutputConfig:
     """The records."""
 
@@ -357,6 +423,8 @@ class Config:
     zenoh: ZenohConfig = field(default_factory=ZenohConfig)
     daemon: DaemonConfig = field(default_factory=DaemonConfig)
     output: OutputConfig = field(default_factory=OutputConfig)
+    nmea: NmeaConfig = field(default_factory=NmeaConfig)
+    ros2: Ros2Config = field(default_factory=Ros2Config)
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -429,6 +497,11 @@ def _check(config: Config) -> Config:
     if unknown or len(set(ad.inputs)) != len(ad.inputs):
         raise ConfigError(f"aiding.inputs: {shown(list(ad.inputs))} must name distinct kinds among "
                           f"{', '.join(AIDING_KINDS)}")
+    _check_imu(config.imu)
+    n = config.nmea
+    if not set(n.sentences) <= set(NMEA_SENTENCES) or len(set(n.sentences)) != len(n.sentences):
+        raise ConfigError(f"nmea.sentences: {shown(list(n.sentences))} must name distinct sentences among "
+                          f"{', '.join(NMEA_SENTENCES)}")
     c = f.compass
     try:
         GainSchedule(c.schedule_time_s, c.level_sigma, c.azimuth_sigma)
@@ -445,6 +518,21 @@ def _check(config: Config) -> Config:
     _check_store("disturbance.window_s", d.window_s, "disturbance.check_interval_s", d.check_interval_s,
                  "stored checks")
     return config
+
+
+def _check_imu(imu: ImuConfig) -> None:
+    """The axes form a right-handed set; the STIM300's datagram and variant are ones its datasheet has."""
+    try:
+        axis_map(imu.axes)
+    except ValueError as exc:
+        raise ConfigError(f"imu.axes: {exc}") from None
+    st = imu.stim300
+    if st.datagram not in STIM300_DATAGRAMS:
+        raise ConfigError(f"imu.stim300.datagram: {st.datagram:#04x} is not a normal-mode datagram (one of "
+                          f"{', '.join(f'{d:#04x}' for d in STIM300_DATAGRAMS)})")
+    if st.acc_range_g not in STIM300_DV_LSB:
+        raise ConfigError(f"imu.stim300.acc_range_g: {st.acc_range_g} g is not a STIM300 variant (one of "
+                          f"{', '.join(str(g) for g in STIM300_DV_LSB)})")
 
 
 def _unknown(name: object, where: str, known: Sequence[str]) -> ConfigError:

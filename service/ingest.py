@@ -24,7 +24,7 @@ from .config import Config
 from .pipeline import AlignmentPipeline, build_pipeline
 from .restarting import RestartingPipeline
 from .sample_gate import SampleGate
-from .serial_formats import SerialFormat, SinsalignFrames
+from .serial_formats import SerialFormat, serial_format_for
 
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
@@ -58,7 +58,7 @@ class SampleCounters(Counters):
 
 class Ingest:
     """Decoder, sample gate, aiding tracks and pipeline of one daemon, fed by :meth:`feed_bytes` (serial bytes in
-    ``serial_format``, the project's own frame by default) or :meth:`feed_samples` (samples decoded from any input);
+    ``serial_format``, the configured one by default) or :meth:`feed_samples` (samples decoded from any input);
     ``report`` gets every event for the operator (once each), ``record_rows`` every admitted row (N, 7: t in s, Δθ in
     rad, Δv in m/s) before the pipeline takes it."""
 
@@ -77,7 +77,7 @@ class Ingest:
         self._wait = (AidingWait([self.tracks[kind] for kind in self.pipeline.aid_kinds], ad.max_wait_s)
                       if self.pipeline.aid_width else None)
         self.gate = gate_for(config)
-        self.serial_format = serial_format or SinsalignFrames()
+        self.serial_format = serial_format or serial_format_for(config)
         self.counters = SampleCounters()
         # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival order, not yet
         # in its track; :meth:`feed_samples` takes them. At most AIDING_INBOX_LIMIT are held (the rest:
@@ -88,7 +88,7 @@ class Ingest:
         self._report = report
         self._record_rows = record_rows
         self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None,
-                                                 "aiding": None}
+                                                 "aiding": None, "input": None}
         self._record_restart = record_restart
 
     def _new_pipeline(self) -> AlignmentPipeline:
@@ -110,6 +110,10 @@ class Ingest:
         """The IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`) that ``data`` completes (any piece of the serial
         stream, in the configured format); its aiding epochs go to :attr:`aiding_inbox`."""
         decoded = self.serial_format.feed(data)
+        for text in decoded.notices:
+            if text != self._reported["input"]:
+                self._reported["input"] = text
+                self._report(text)
         for text in decoded.refused:
             self.counters.bad_aiding += 1
             self._report(text)

@@ -1,30 +1,40 @@
 """What arrives on the serial line, decoded: a format turns the bytes of any read into IMU sample rows and aiding
 epochs, and keeps its own counters.
 
-The ingest core (ingest.py) takes a format and never looks inside it, so a vendor's frame (a STIM300 datagram, a
-KVH or Xsens message) is another class with the same three members, and nothing else changes. The project's own
-frame (protocol/serial_frame.py) is :class:`SinsalignFrames`.
+The ingest core (ingest.py) takes a format and never looks inside it. The project's own frame
+(protocol/serial_frame.py) is :class:`SinsalignFrames`; a vendor's frame (a STIM300 datagram, a KVH or Xsens
+message, a declared frame) is a protocol decoder (protocol/vendor.py) inside :class:`VendorFrames`, which stamps
+the sensor's counter into time and turns the sensor's axes into the body's. :func:`serial_format_for` picks
+the configured one (``[imu] format``).
 """
 from __future__ import annotations
 
+import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
 
 from ..protocol import messages
+from ..protocol.axes import axis_map
+from ..protocol.counter_clock import CounterClock
 from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, FrameDecoder, decode_aiding, decode_imu
-from .sample_gate import sample_rows
+from ..protocol.vendor import VendorDecoder
+from .config import Config
+from .sample_gate import SAMPLE_COLUMNS, sample_rows
 
 
 @dataclass(slots=True)
 class Decoded:
     """What one read gave: IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`), aiding epochs in arrival order,
-    and a line per unit that was dropped for what it held (its frame was whole: counted as ``bad_aiding``)."""
+    a line per unit that was dropped for what it held (its frame was whole: counted as ``bad_aiding``), and lines
+    for the operator (a configuration the stream contradicts)."""
 
     samples: np.ndarray
     aiding: list[messages.AidingSample] = field(default_factory=list)
     refused: list[str] = field(default_factory=list)
+    notices: list[str] = field(default_factory=list)
 
 
 class SerialFormat(Protocol):
@@ -59,3 +69,44 @@ class SinsalignFrames:
     def counters(self) -> dict[str, int]:
         """The decoder's and its sequence counters (protocol/README.md, "Decoder rules and counters")."""
         return self.decoder.all_counters()
+
+
+class VendorFrames:
+    """A vendor IMU's frames: the protocol ``decoder``'s samples, stamped from its counter on the host clock
+    (``clock``, s; anchored once, :class:`~sinsalign.protocol.counter_clock.CounterClock`) and turned from the sensor's
+    axes into the body's (``C_s_b``, :func:`~sinsalign.protocol.axes.axis_map`)."""
+
+    def __init__(self, decoder: VendorDecoder, C_s_b: np.ndarray,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.decoder = decoder
+        self.C_s_b = C_s_b
+        self.counter_clock = CounterClock(decoder.counter_modulus, decoder.tick_s, decoder.counter_step)
+        self._clock = clock
+
+    def feed(self, data: bytes) -> Decoded:
+        arrival_s = self._clock()
+        got = self.decoder.feed(data)
+        t = np.array([self.counter_clock.stamp(int(c), arrival_s) for c in got.counter], dtype=float)
+        keep = ~np.isnan(t)   # a repeated or stale counter: dropped (counted by the clock)
+        rows = np.zeros((int(keep.sum()), SAMPLE_COLUMNS))
+        rows[:, 0] = t[keep]
+        rows[:, 1:4] = got.dtheta[keep] @ self.C_s_b.T
+        rows[:, 4:7] = got.dv[keep] @ self.C_s_b.T
+        rows[:, 7] = got.status[keep]
+        return Decoded(rows, notices=got.notices)
+
+    def counters(self) -> dict[str, int]:
+        """The decoder's counters and its counter's sequence counters (``seq_*``)."""
+        return {**self.decoder.counters(), **self.counter_clock.counters()}
+
+
+VENDOR_DECODERS: dict[str, Callable[[Config], VendorDecoder]] = {}
+"""The vendor decoder of each ``[imu] format`` but ``sinsalign``, built from the configuration."""
+
+
+def serial_format_for(config: Config, clock: Callable[[], float] = time.monotonic) -> SerialFormat:
+    """The serial format ``[imu] format`` names, with the configured axes (``[imu] axes``)."""
+    name = config.imu.format
+    if name == "sinsalign":
+        return SinsalignFrames()
+    return VendorFrames(VENDOR_DECODERS[name](config), axis_map(config.imu.axes), clock)

@@ -7,6 +7,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from sinsalign.protocol.formats import IMU_FORMATS
+
 DESCRIPTION = """\
 Real-time initial alignment of a strapdown INS: recursive Optimal-REQUEST (OPREQ) coarse
 alignment in the inertial frame (level from gravity, heading from the Earth's rotation; GLS
@@ -203,6 +205,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
         overrides["daemon"] = {"record_path": args.record}
     if args.aid:
         overrides["aiding"] = {"inputs": args.aid}
+    if args.imu_format:
+        overrides["imu"] = {"format": args.imu_format}
+    if args.nmea_udp:
+        overrides["nmea"] = {"udp": args.nmea_udp}
+    if args.ros2:
+        overrides["ros2"] = {"enabled": True}
     _refuse_fixed_base_options(args, bool(args.aid))
     config = load_config(args.config, overrides)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(levelname)s %(name)s: %(message)s",
@@ -224,9 +232,11 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from sinsalign.service.config import load_config
     from sinsalign.tools.bench_command import run_bench
+    config = load_config(args.config, {"imu": {"format": args.imu_format}})
     return run_bench(args.log, args.scenario, args.seed, args.duration, args.aid, args.aid_late, args.port,
-                     args.speed, args.start_delay)
+                     args.speed, args.start_delay, config.imu)
 
 
 def cmd_fuzz(args: argparse.Namespace) -> int:
@@ -385,6 +395,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--serial", metavar="PATH", help="serial device, e.g. /dev/ttyUSB0 or a pty from sinsalign bench")
     p.add_argument("--baud", type=int, help="baud rate (default 921600; a pty ignores it)")
     p.add_argument("--zenoh-imu", action="store_true", help="also take IMU samples from <prefix>/<unit>/imu")
+    p.add_argument("--imu-format", choices=IMU_FORMATS, help="the IMU's serial frame (imu.format; default "
+                   "sinsalign, the project's frame; a vendor's is stamped from its counter, axes from imu.axes)")
+    p.add_argument("--nmea-udp", action="append", metavar="HOST:PORT", help="send NMEA 0183 heading sentences "
+                   "(THS, ROT, PASHR by default; [nmea] table) as UDP datagrams here (repeatable)")
+    p.add_argument("--ros2", action="store_true", help="publish sensor_msgs/msg/Imu (CDR) on "
+                   "<prefix>/<unit>/ros/imu for zenoh-bridge-ros2dds (needs the ros2 extra)")
     p.add_argument("--record", metavar="CSV", help="record the decoded input as an IMU log (owner-only file)")
     p.add_argument("--period", type=float, metavar="S", help="attitude output period (default 1 s)")
     p.add_argument("--aid", action="append", metavar="KIND",
@@ -413,6 +429,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "frames among the IMU frames; serve with the [aiding] table printed")
     p.add_argument("--aid-late", type=NON_NEGATIVE, default=0.2, metavar="S",
                    help="how far behind the IMU frames the aiding epochs come (s of data, default 0.2)")
+    p.add_argument("--imu-format", choices=IMU_FORMATS, default="sinsalign", help="emulate this IMU's frames "
+                   "(default sinsalign; a vendor's take their settings, axes and rate from --config)")
+    p.add_argument("--config", metavar="TOML", help="the daemon's configuration: [imu] axes and the vendor's table")
     p.set_defaults(func=cmd_bench)
 
     p = sub.add_parser("fuzz", help="hostile input into every input class; a Markdown fault table",

@@ -9,18 +9,21 @@ import time
 
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.service.align.conventions import DEG
+from sinsalign.service.config import ImuConfig
 
 from .sim.aiding import daemon_aiding, scenario_aids
 from .sim.imu import simulate
 from .sim.scenarios import seed_run
-from .virtual_imu import AidingPlayback, FramePlayer, PtyPair
+from .virtual_imu import AidingPlayback, FramePlayer, PtyPair, imu_encoder
 
 
 def run_bench(log: str | None, scenario: str, seed: int, duration_s: float | None, aid: bool, aid_late_s: float,
-              port: str | None, speed: float, start_delay_s: float) -> int:
+              port: str | None, speed: float, start_delay_s: float, imu: ImuConfig | None = None) -> int:
     """Play ``log``, or seed ``seed`` of ``scenario`` (``duration_s`` long if given; with its aiding epochs
-    ``aid_late_s`` late if ``aid``), into ``port`` or a new pty, ``start_delay_s`` after saying where, at ×``speed``;
-    0, or 2 when the scenario has no aiding sensor to play."""
+    ``aid_late_s`` late if ``aid``), into ``port`` or a new pty, ``start_delay_s`` after saying where, at ×``speed``,
+    in the frames of ``imu.format`` (the project's by default); 0, or 2 when the scenario has no aiding sensor to
+    play."""
+    imu = imu or ImuConfig()
     if log:
         chunks = open_imu_log(log).blocks()
         what = log
@@ -50,9 +53,11 @@ def run_bench(log: str | None, scenario: str, seed: int, duration_s: float | Non
     else:
         pty = PtyPair()
         fd, name = pty.master_fd, pty.port_name
+    if imu.format != "sinsalign":
+        what += f", as {imu.format} frames (serve --imu-format {imu.format} with the same [imu] table)"
     print(f"virtual IMU on {name}: playing {what} at ×{speed:g} in {start_delay_s:g} s", file=sys.stderr)
     time.sleep(start_delay_s)   # the reader's open() flushes what came before it
-    player = FramePlayer(fd, speed, aiding)
+    player = FramePlayer(fd, speed, aiding, imu_encoder(imu))
     try:
         player.play_chunks(chunks)
     except KeyboardInterrupt:

@@ -8,6 +8,8 @@ their own timestamps at ``speed`` × real time, writing every frame that is due 
 never blocks for long: a reader that stops reading makes :meth:`FramePlayer.play` stop with a
 timeout error instead of hanging.
 
+A vendor's IMU (``[imu] format``) is played in its own frames (:func:`imu_encoder`).
+
 An :class:`AidingPlayback` adds an aiding sensor on the same line (serial aiding frames, type 2):
 each epoch goes out ``late_s`` of data after its time stamp, just before the first IMU frame at or
 after that time, as a real aiding sensor's output reaches the IMU's line late.
@@ -19,11 +21,14 @@ import os
 import select
 import time
 import tty
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+from sinsalign.protocol.axes import axis_map
 from sinsalign.protocol.serial_frame import encode_aiding, encode_imu
+from sinsalign.protocol.vendor import VendorEncoder
+from sinsalign.service.config import ImuConfig
 
 WRITE_TIMEOUT_S = 2.0
 
@@ -86,14 +91,31 @@ class AidingPlayback:
         return out
 
 
+ImuEncoder = Callable[[int, float, np.ndarray, np.ndarray], bytes]
+"""One IMU frame: (sequence number, t in s, Δθ (3,) rad, Δv (3,) m/s in body axes) → its bytes."""
+
+VENDOR_ENCODERS: dict[str, Callable[[ImuConfig], VendorEncoder]] = {}
+"""The bench encoder of each vendor ``[imu] format``, built from the ``[imu]`` table."""
+
+
+def imu_encoder(imu: ImuConfig) -> ImuEncoder:
+    """The frames of the IMU ``[imu] format`` names: the project's frame, or a vendor's in its sensor axes (the
+    inverse of ``[imu] axes``), numbered by the sample and without a time stamp of its own."""
+    if imu.format == "sinsalign":
+        return encode_imu
+    vendor = VENDOR_ENCODERS[imu.format](imu)
+    C_b_s = axis_map(imu.axes).T
+    return lambda seq, _t, dtheta, dv: vendor.encode(seq, C_b_s @ dtheta, C_b_s @ dv)
+
+
 def encode_samples(t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int,
-                   aiding: Sequence[AidingPlayback] = ()) -> bytes:
-    """IMU frames (sequence numbers from ``seq``) of samples t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, each
-    preceded by the aiding frames due before it (of every stream in ``aiding``)."""
+                   aiding: Sequence[AidingPlayback] = (), encode: ImuEncoder = encode_imu) -> bytes:
+    """IMU frames (sequence numbers from ``seq``, by ``encode``) of samples t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s,
+    each preceded by the aiding frames due before it (of every stream in ``aiding``)."""
     frames = []
     for i in range(len(t)):
         frames += [stream.due(float(t[i])) for stream in aiding]
-        frames.append(encode_imu(seq + i, float(t[i]), dtheta[i], dv[i]))
+        frames.append(encode(seq + i, float(t[i]), dtheta[i], dv[i]))
     return b"".join(frames)
 
 
@@ -104,6 +126,7 @@ class FramePlayer:
     fd: int
     speed: float = 1.0
     aiding: Sequence[AidingPlayback] = ()
+    encode: ImuEncoder = encode_imu
     seq: int = 0
     frames_written: int = 0
     _origin: tuple[float, float] | None = None   # (data time, wall time) of the first frame
@@ -123,7 +146,7 @@ class FramePlayer:
                 continue
             due_data = t0_data + (time.monotonic() - t0_wall) * self.speed
             end = max(k + 1, int(np.searchsorted(t, due_data, side="right")))
-            write_all(self.fd, encode_samples(t[k:end], dtheta[k:end], dv[k:end], self.seq, self.aiding))
+            write_all(self.fd, encode_samples(t[k:end], dtheta[k:end], dv[k:end], self.seq, self.aiding, self.encode))
             self.seq += end - k
             self.frames_written += end - k
             k = end
