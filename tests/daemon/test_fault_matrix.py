@@ -19,10 +19,8 @@ import pytest
 import zenoh
 from sinsalign.protocol import messages
 from sinsalign.protocol.serial_frame import encode_imu
-from sinsalign.tools.sim.imu import simulate
-from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, write_all
-from support.daemon_harness import RunningDaemon, Subscriber
+from support.daemon_harness import RunningDaemon, Subscriber, swing_samples
 
 SECONDS, FAULT_AT_S, SPEED = 110.0, 20.0, 40.0
 FAST = {"fine": {"enabled": False}, "output": {"period_s": 1.0}}
@@ -30,14 +28,7 @@ FAST = {"fine": {"enabled": False}, "output": {"period_s": 1.0}}
 110-s run is aligned again at its end even after a restart at 20 s."""
 
 
-def data():
-    scenario = get_scenario("seed000-swing")
-    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, SECONDS, 3,
-                        chunk_samples=100_000)
-    return chunk.t, chunk.dtheta, chunk.dv
-
-
-T, DTHETA, DV = data()
+T, DTHETA, DV = swing_samples(SECONDS, 3)
 K = int(FAULT_AT_S * 200)
 
 

@@ -101,6 +101,14 @@ def wait_until(condition, timeout_s: float = 10.0) -> bool:
     return bool(condition())
 
 
+def swing_samples(seconds: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``seconds`` of the seed-000 swing (seed ``seed``) in one piece: t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s."""
+    scenario = get_scenario(SCENARIO)
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, seed,
+                        chunk_samples=100_000)
+    return chunk.t, chunk.dtheta, chunk.dv
+
+
 def samples(seconds: float = SECONDS):
     scenario = get_scenario(SCENARIO)
     return list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 7,
