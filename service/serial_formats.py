@@ -19,8 +19,12 @@ import numpy as np
 from ..protocol import messages
 from ..protocol.axes import axis_map
 from ..protocol.counter_clock import CounterClock
+from ..protocol.declared_frame import DeclaredFrameDecoder
+from ..protocol.kvh import KvhDecoder
 from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, FrameDecoder, decode_aiding, decode_imu
+from ..protocol.stim300 import Stim300Decoder
 from ..protocol.vendor import VendorDecoder
+from ..protocol.xsens import XsensDecoder
 from .config import Config
 from .sample_gate import SAMPLE_COLUMNS, sample_rows
 
@@ -100,7 +104,13 @@ class VendorFrames:
         return {**self.decoder.counters(), **self.counter_clock.counters()}
 
 
-VENDOR_DECODERS: dict[str, Callable[[Config], VendorDecoder]] = {}
+VENDOR_DECODERS: dict[str, Callable[[Config], VendorDecoder]] = {
+    "stim300": lambda c: Stim300Decoder(c.imu.rate_hz, c.imu.stim300.datagram, c.imu.stim300.acc_range_g),
+    "kvh1750": lambda c: KvhDecoder("1750", c.imu.rate_hz),
+    "kvh1775": lambda c: KvhDecoder("1775", c.imu.rate_hz),
+    "xsens": XsensDecoder.from_config,
+    "frame": DeclaredFrameDecoder.from_config,
+}
 """The vendor decoder of each ``[imu] format`` but ``sinsalign``, built from the configuration."""
 
 

@@ -12,7 +12,8 @@ A vendor's IMU (``[imu] format``) is played in its own frames (:func:`imu_encode
 
 An :class:`AidingPlayback` adds an aiding sensor on the same line (serial aiding frames, type 2):
 each epoch goes out ``late_s`` of data after its time stamp, just before the first IMU frame at or
-after that time, as a real aiding sensor's output reaches the IMU's line late.
+after that time, as a real aiding sensor's output reaches the IMU's line late. A GNSS receiver's own output (NMEA,
+UBX: tools/receiver_encoders.py) is played on a port of its own, on the same clock.
 """
 from __future__ import annotations
 
@@ -26,8 +27,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from sinsalign.protocol.axes import axis_map
+from sinsalign.protocol.declared_frame import DeclaredFrameEncoder
+from sinsalign.protocol.kvh import KvhEncoder
 from sinsalign.protocol.serial_frame import encode_aiding, encode_imu
+from sinsalign.protocol.stim300 import Stim300Encoder
 from sinsalign.protocol.vendor import VendorEncoder
+from sinsalign.protocol.xsens import XsensEncoder
 from sinsalign.service.config import ImuConfig
 
 WRITE_TIMEOUT_S = 2.0
@@ -62,19 +67,28 @@ def write_all(fd: int, data: bytes, timeout_s: float = WRITE_TIMEOUT_S) -> None:
             select.select([], [fd], [], 0.05)
 
 
+EpochEncoder = Callable[[int, np.ndarray], bytes]
+"""One aiding epoch: (its index, its row: t in s, then the kind's pinned log columns) → its bytes."""
+
+
 @dataclass(slots=True)
 class AidingPlayback:
     """Epochs (N, 1 + values: t in s, then the kind's pinned log columns) of one aiding ``kind`` (odo, gnss,
-    master) to interleave with the IMU frames, each ``late_s`` seconds of data after its time stamp."""
+    master) to interleave with the IMU frames, each ``late_s`` seconds of data after its time stamp, as serial
+    aiding frames or in the bytes ``encode`` makes of them (a GNSS receiver's own output)."""
 
     kind: str
     epochs: np.ndarray
     late_s: float = 0.0
+    encode: EpochEncoder | None = None
     sent: int = 0
     _due_s: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self._due_s = self.epochs[:, 0] + self.late_s   # once: due() runs before every IMU frame
+        if self.encode is None:
+            kind = self.kind
+            self.encode = lambda j, row: encode_aiding(j, float(row[0]), kind, row[1:])
 
     def due(self, t: float) -> bytes:
         """The frames of the epochs not sent yet that are due before an IMU frame at time t (s)."""
@@ -85,8 +99,7 @@ class AidingPlayback:
         return self._frames(len(self.epochs))
 
     def _frames(self, end: int) -> bytes:
-        out = b"".join(encode_aiding(j, float(self.epochs[j, 0]), self.kind, self.epochs[j, 1:])
-                       for j in range(self.sent, end))
+        out = b"".join(self.encode(j, self.epochs[j]) for j in range(self.sent, end))
         self.sent = max(self.sent, end)
         return out
 
@@ -94,7 +107,13 @@ class AidingPlayback:
 ImuEncoder = Callable[[int, float, np.ndarray, np.ndarray], bytes]
 """One IMU frame: (sequence number, t in s, Δθ (3,) rad, Δv (3,) m/s in body axes) → its bytes."""
 
-VENDOR_ENCODERS: dict[str, Callable[[ImuConfig], VendorEncoder]] = {}
+VENDOR_ENCODERS: dict[str, Callable[[ImuConfig], VendorEncoder]] = {
+    "stim300": lambda imu: Stim300Encoder(imu.rate_hz, imu.stim300.datagram, imu.stim300.acc_range_g),
+    "kvh1750": lambda imu: KvhEncoder("1750", imu.rate_hz),
+    "kvh1775": lambda imu: KvhEncoder("1775", imu.rate_hz),
+    "xsens": XsensEncoder.from_imu,
+    "frame": DeclaredFrameEncoder.from_imu,
+}
 """The bench encoder of each vendor ``[imu] format``, built from the ``[imu]`` table."""
 
 
@@ -121,12 +140,16 @@ def encode_samples(t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int,
 
 @dataclass(slots=True)
 class FramePlayer:
-    """Encodes samples as IMU frames and writes them to a file descriptor, paced by their time stamps."""
+    """Encodes samples as IMU frames and writes them to a file descriptor, paced by their time stamps; a
+    ``receiver`` (a GNSS receiver's own output) goes to its own ``receiver_fd`` on the same clock, each epoch's
+    bytes just after the IMU frames written with its due time."""
 
     fd: int
     speed: float = 1.0
     aiding: Sequence[AidingPlayback] = ()
     encode: ImuEncoder = encode_imu
+    receiver: AidingPlayback | None = None
+    receiver_fd: int = -1
     seq: int = 0
     frames_written: int = 0
     _origin: tuple[float, float] | None = None   # (data time, wall time) of the first frame
@@ -147,6 +170,8 @@ class FramePlayer:
             due_data = t0_data + (time.monotonic() - t0_wall) * self.speed
             end = max(k + 1, int(np.searchsorted(t, due_data, side="right")))
             write_all(self.fd, encode_samples(t[k:end], dtheta[k:end], dv[k:end], self.seq, self.aiding, self.encode))
+            if self.receiver is not None:   # after the IMU frames: a reader that lags the IMU never sees it lead
+                write_all(self.receiver_fd, self.receiver.due(float(t[end - 1])))
             self.seq += end - k
             self.frames_written += end - k
             k = end
@@ -158,3 +183,5 @@ class FramePlayer:
             self.play(t, dtheta, dv, stop)
         for stream in self.aiding:
             write_all(self.fd, stream.rest())
+        if self.receiver is not None:
+            write_all(self.receiver_fd, self.receiver.rest())
