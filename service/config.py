@@ -28,6 +28,7 @@ from ..protocol.aiding_log import (
     VELOCITY_STD_RANGE,
 )
 from ..protocol.axes import axis_map
+from ..protocol.declared_frame import FrameSpec, FrameSpecError
 from ..protocol.formats import IMU_FORMATS
 from ..protocol.imu_log import (
     DATASHEET_RANGES,
@@ -521,7 +522,8 @@ def _check(config: Config) -> Config:
 
 
 def _check_imu(imu: ImuConfig) -> None:
-    """The axes form a right-handed set; the STIM300's datagram and variant are ones its datasheet has."""
+    """The axes form a right-handed set; the STIM300's datagram and variant are ones its datasheet has; a declared
+    frame (``format = "frame"``) adds up (:meth:`~sinsalign.protocol.declared_frame.FrameSpec.parse`)."""
     try:
         axis_map(imu.axes)
     except ValueError as exc:
@@ -533,6 +535,11 @@ def _check_imu(imu: ImuConfig) -> None:
     if st.acc_range_g not in STIM300_DV_LSB:
         raise ConfigError(f"imu.stim300.acc_range_g: {st.acc_range_g} g is not a STIM300 variant (one of "
                           f"{', '.join(str(g) for g in STIM300_DV_LSB)})")
+    if imu.format == "frame":
+        try:
+            FrameSpec.parse(imu.frame, imu.rate_hz)
+        except FrameSpecError as exc:
+            raise ConfigError(f"imu.frame.{exc.key}: {exc}") from None
 
 
 def _unknown(name: object, where: str, known: Sequence[str]) -> ConfigError:
