@@ -1,5 +1,6 @@
 """Zenoh key expressions of one unit: ``<prefix>/<unit>/imu``, ``…/aid/<kind>``, ``…/attitude``,
-``…/status``, the liveliness token ``…/alive`` and the read-only queryable ``…/state``."""
+``…/status``, the liveliness token ``…/alive``, the read-only queryable ``…/state`` and the ROS 2 output
+``…/ros/imu`` (``sensor_msgs/msg/Imu``, CDR: zenoh-bridge-ros2dds makes it the topic ``/<prefix>/<unit>/ros/imu``)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -50,6 +51,10 @@ class UnitKeys:
     @property
     def state(self) -> str:
         return self._key("state")
+
+    @property
+    def ros_imu(self) -> str:
+        return self._key("ros", "imu")
 
     @property
     def all_units(self) -> str:

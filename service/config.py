@@ -41,6 +41,8 @@ from ..protocol.imu_log import (
 )
 from ..protocol.keys import UnitKeys
 from ..protocol.messages import AIDING_FIELDS as AIDING_KINDS
+from ..protocol.nmea_out import LINE_SHARE, line_bits_per_s
+from ..protocol.nmea_out import SENTENCES as NMEA_SENTENCES
 from ..protocol.stim300 import STIM300_DATAGRAMS, STIM300_DV_LSB
 from .align.compass import GainSchedule
 from .align.solvers import ALIGNMENT_SOLVERS, SOLVERS
@@ -97,7 +99,6 @@ def _positive(default: float, high: float, why: str, doc: str = "") -> Any:
 HANDOVERS = ("sigma", "time")
 GNSS_FORMULAS = ("vif", "pif")
 GNSS_INPUTS = ("sinsalign", "nmea", "ubx")
-NMEA_SENTENCES = ("THS", "HDT", "ROT", "PASHR")
 ZENOH_MODES = ("", "peer", "client", "router")
 DISTURBANCE_ACTIONS = ("restart", "report")
 LEVER = "3 numbers (body x, y, z in m)"
@@ -499,10 +500,7 @@ def _check(config: Config) -> Config:
         raise ConfigError(f"aiding.inputs: {shown(list(ad.inputs))} must name distinct kinds among "
                           f"{', '.join(AIDING_KINDS)}")
     _check_imu(config.imu)
-    n = config.nmea
-    if not set(n.sentences) <= set(NMEA_SENTENCES) or len(set(n.sentences)) != len(n.sentences):
-        raise ConfigError(f"nmea.sentences: {shown(list(n.sentences))} must name distinct sentences among "
-                          f"{', '.join(NMEA_SENTENCES)}")
+    _check_nmea(config.nmea)
     c = f.compass
     try:
         GainSchedule(c.schedule_time_s, c.level_sigma, c.azimuth_sigma)
@@ -540,6 +538,33 @@ def _check_imu(imu: ImuConfig) -> None:
             FrameSpec.parse(imu.frame, imu.rate_hz)
         except FrameSpecError as exc:
             raise ConfigError(f"imu.frame.{exc.key}: {exc}") from None
+
+
+def nmea_destination(text: str) -> tuple[str, int]:
+    """(host, port) of an ``[nmea] udp`` destination ``HOST:PORT`` (``[::1]:10110`` for an IPv6 address)."""
+    host, _, port = text.rpartition(":")
+    host = host.removeprefix("[").removesuffix("]")
+    if not host or not (port.isascii() and port.isdigit()) or not 0 < int(port) < 65536:
+        raise ConfigError(f"nmea.udp: {shown(text)} is not HOST:PORT (a port from 1 to 65535)")
+    return host, int(port)
+
+
+def _check_nmea(n: NmeaConfig) -> None:
+    """Known, distinct sentences; a talker id of two capitals; HOST:PORT destinations; and, to a serial port, the
+    sentences at their rate within :data:`~sinsalign.protocol.nmea_out.LINE_SHARE` of the line (a line that cannot
+    keep up would drop sentences all the time)."""
+    if not set(n.sentences) <= set(NMEA_SENTENCES) or len(set(n.sentences)) != len(n.sentences):
+        raise ConfigError(f"nmea.sentences: {shown(list(n.sentences))} must name distinct sentences among "
+                          f"{', '.join(NMEA_SENTENCES)}")
+    if not (n.talker.isascii() and n.talker.isalpha() and n.talker.isupper() and len(n.talker) == 2):
+        raise ConfigError(f"nmea.talker: {shown(n.talker)} must be two capital letters (HE, IN, GP, …)")
+    for text in n.udp:
+        nmea_destination(text)
+    need = line_bits_per_s(n.sentences, n.talker, n.rate_hz)
+    if n.serial and need > LINE_SHARE * n.baud:
+        raise ConfigError(f"nmea.baud, nmea.rate_hz: {', '.join(n.sentences)} at {n.rate_hz:g} Hz take up to "
+                          f"{need:.0f} bit/s (10 bits a character), more than {LINE_SHARE:.0%} of {n.baud} Bd: raise "
+                          "nmea.baud, lower nmea.rate_hz or send fewer sentences")
 
 
 def _unknown(name: object, where: str, known: Sequence[str]) -> ConfigError:

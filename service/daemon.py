@@ -2,7 +2,8 @@
 
 What lies between the bytes and samples received and the records published needs no I/O: :class:`~.ingest.Ingest`
 does it, fed by the loop. Around it sit thin shells, one job each: the serial port (serial_port.py), the Zenoh
-inputs (zenoh_inputs.py) and outputs (zenoh_outputs.py), the recording (recording.py) and the status's health rule
+inputs (zenoh_inputs.py) and outputs (zenoh_outputs.py), the NMEA 0183 and ROS 2 outputs
+(nmea_outputs.py, ros_outputs.py), the recording (recording.py) and the status's health rule
 (health.py).
 
 One loop thread does everything in order, driven by the IMU frames' own timestamps: read what
@@ -31,7 +32,9 @@ from ..protocol.results import ResultRecord
 from .config import Config, ConfigError
 from .health import health
 from .ingest import Ingest, SampleCounters
+from .nmea_outputs import NmeaOutputs
 from .recording import Recording
+from .ros_outputs import RosImuOutput
 from .serial_port import SerialPort
 from .zenoh_inputs import ZenohInputs
 from .zenoh_outputs import ZenohOutputs
@@ -58,8 +61,11 @@ class Daemon:
         self._counters_at_status: dict[str, int] = {}
         self._stop = threading.Event()
         self._refuse_a_served_unit()   # before anything is opened: the other daemon's recording stays whole
+        ros = RosImuOutput(session, self.keys, config.ros2) if config.ros2.enabled else None
+        self.nmea = NmeaOutputs(config.nmea) if config.nmea.udp or config.nmea.serial else None
         self._recording = Recording(config.daemon.record_path, config) if config.daemon.record_path else None
         self.outputs = ZenohOutputs(session, self.keys, self.state)
+        self._record_outputs = [self.outputs, *(output for output in (self.nmea, ros) if output is not None)]
         self.inputs = ZenohInputs(session, self.keys, config.zenoh.imu_input, self.ingest.aid_kinds, self.counters,
                                   self._error)
         self._next_status = time.monotonic()
@@ -88,7 +94,8 @@ class Daemon:
         if len(samples):
             self._last_input = time.monotonic()
         records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs())
-        self.outputs.records(records)
+        for output in self._record_outputs:
+            output.records(records)
         if records:
             self.last_record = records[-1]
         self.counters.records_published += len(records)
@@ -128,7 +135,8 @@ class Daemon:
     def close(self) -> None:
         self.outputs.status(self.status(advance=True))
         self.inputs.close()
-        self.outputs.close()
+        for output in self._record_outputs:
+            output.close()
         if self.serial is not None:
             self.serial.close()
         if self._recording is not None:
@@ -145,6 +153,8 @@ class Daemon:
         if self.serial is not None:
             counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects,
                          "serial_foreign_devices": self.serial.foreign_devices}
+        if self.nmea is not None:
+            counters |= self.nmea.counters.as_dict()
         return counters
 
     def status(self, advance: bool = False) -> dict:

@@ -12,6 +12,7 @@ from sinsalign.protocol.serial_frame import DecoderCounters
 from sinsalign.service.aiding import AidingCounters
 from sinsalign.service.config import reference_markdown
 from sinsalign.service.ingest import SampleCounters
+from sinsalign.service.nmea_outputs import NmeaCounters
 from sinsalign.service.sample_gate import GateCounters
 
 SECTIONS = ("cli", "config", "counters")
@@ -49,7 +50,7 @@ def counter_docs() -> dict[str, str]:
             **{f"aiding_seq_{k}": v for k, v in SEQUENCE_DOCS.items()},
             **{f"zenoh_seq_{k}": v for k, v in SEQUENCE_DOCS.items()}, **SampleCounters.docs(),
             **GateCounters.docs(), **{f"<kind>_{k}": v for k, v in AidingCounters.docs().items()},
-            **ESTIMATOR_DOCS, **DAEMON_DOCS}
+            **NmeaCounters.docs(), **ESTIMATOR_DOCS, **DAEMON_DOCS}
 
 
 def _class_of(name: str) -> str:
