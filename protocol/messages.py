@@ -30,8 +30,11 @@ NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_publish
                         "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
                         "gnss_vel_accepted", "gnss_pos_accepted", "master_epochs", "master_unaided_queries",
                         "master_vel_accepted", "master_att_accepted", "odo_observations_awaiting_aid",
-                        "gnss_observations_awaiting_aid", "master_observations_awaiting_aid"})
-"""Status counters that count work, not faults; every other counter counts a drop or a fault, but for SCREENED."""
+                        "gnss_observations_awaiting_aid", "master_observations_awaiting_aid", "gnss_rx_no_fix",
+                        "gnss_rx_no_vertical", "gnss_rx_before_imu", "gnss_serial_reconnects"})
+"""Status counters that count work, not faults; every other counter counts a drop or a fault, but for SCREENED. A
+receiver's epochs without a fix, the first NMEA epoch without a height before it and the epochs before the IMU's
+first sample come with every start: no fault."""
 SCREENED = frozenset({"odo_rejected", "odo_outlier_pairs", "gnss_coarse_rejected", "gnss_vel_rejected",
                       "gnss_pos_rejected", "master_vel_rejected", "master_att_rejected"})
 """Inputs an estimator's gate or screen turned away. A gate at χ² 16.3 also turns away about 0.1 % of good

@@ -29,7 +29,7 @@ from ..protocol.aiding_log import (
 )
 from ..protocol.axes import axis_map
 from ..protocol.declared_frame import FrameSpec, FrameSpecError
-from ..protocol.formats import IMU_FORMATS
+from ..protocol.formats import GNSS_INPUTS, IMU_FORMATS
 from ..protocol.imu_log import (
     DATASHEET_RANGES,
     MAX_ACC_RANGE_G,
@@ -98,7 +98,6 @@ def _positive(default: float, high: float, why: str, doc: str = "") -> Any:
 
 HANDOVERS = ("sigma", "time")
 GNSS_FORMULAS = ("vif", "pif")
-GNSS_INPUTS = ("sinsalign", "nmea", "ubx")
 ZENOH_MODES = ("", "peer", "client", "router")
 DISTURBANCE_ACTIONS = ("restart", "report")
 LEVER = "3 numbers (body x, y, z in m)"

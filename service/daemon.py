@@ -12,10 +12,12 @@ forward, values finite), feed the pipeline, publish each attitude record as it c
 publish the status at ``daemon.status_period_s`` of wall time. In an aided mode
 (``aiding.inputs``: ``odo``, ``gnss``, both, or ``master``) the epochs of each kind (``…/aid/<kind>`` on Zenoh,
 serial aiding frames) go to its track, and each IMU sample waits for its aiding (at most each stream's usual
-interval plus ``aiding.max_wait_s`` of data time) before the pipeline takes them. Every drop is counted in the
-status; nothing received over the wire is executed or changes the configuration. The Zenoh side
-also holds a liveliness token and answers a read-only query with the current state and the
-effective configuration.
+interval plus ``aiding.max_wait_s`` of data time) before the pipeline takes them. A GNSS receiver's own output
+(NMEA, UBX: ``[aiding.gnss] input``) is decoded from the IMU's line or from its own port (``[aiding.gnss] serial``,
+read without waiting before the IMU's), its epochs put on the IMU's clock by their arrival time (arrival_clock.py).
+Every drop is counted in the status; nothing received over the wire is executed or changes the configuration. The
+Zenoh side also holds a liveliness token and answers a read-only query with the current state and the effective
+configuration.
 """
 from __future__ import annotations
 
@@ -45,6 +47,17 @@ UNIT_CHECK_S = 0.3
 (s): the tokens arrive some 50 ms after the session opens. Without any peer there is nothing to wait for."""
 
 
+def gnss_port(config: Config) -> SerialPort | None:
+    """The GNSS receiver's own port (``[aiding.gnss] serial``), opened, or None when it shares the IMU's line."""
+    g = config.aiding.gnss
+    if not g.serial:
+        return None
+    if g.input == "sinsalign":
+        raise ConfigError("aiding.gnss.serial: a receiver's own port takes its own output (input = \"nmea\" or "
+                          "\"ubx\"); the project's aiding frames come on the IMU's line")
+    return SerialPort(g.serial, g.baud, config.serial.reconnect_max_s)
+
+
 class Daemon:
     """Runs until :meth:`stop`; build it with an open Zenoh session and an optional serial port."""
 
@@ -54,6 +67,7 @@ class Daemon:
         self.serial = serial_port
         self.keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
         self.ingest = Ingest(config, self._error, self._record_raw, self._record_restart)
+        self.gnss_serial = gnss_port(config)
         self.last_error: str | None = None
         self.last_record: ResultRecord | None = None
         self._started = time.monotonic()
@@ -83,8 +97,16 @@ class Daemon:
         drained without waiting when a serial port paces the loop, or waited on for up to 20 ms
         when Zenoh is the only input. Serial aiding frames go to :attr:`Ingest.aiding_inbox`.
         """
-        serial = self.ingest.decode_serial(self.serial.read()) if self.serial is not None else None
+        # the receiver's own port first, without waiting, and its bytes stamped with the IMU's arrival after them:
+        # the IMU frames sent before them are then read, so an epoch never seems to lead the IMU (at the bench's
+        # ×speed a later read of the receiver would)
+        receiver = self.gnss_serial.read(wait=False) if self.gnss_serial is not None else b""
+        serial = self.ingest.decode_serial(self.serial.read(), time.monotonic()) if self.serial is not None else None
         zenoh_rows = self.inputs.imu_samples(0.0 if serial is not None else 0.02)
+        arrival_s = time.monotonic()
+        self.ingest.arrival_clock.observe(zenoh_rows[:, 0], arrival_s)
+        if receiver:
+            self.ingest.decode_receiver(receiver, arrival_s)
         return zenoh_rows if serial is None else np.concatenate((serial, zenoh_rows))
 
     # ---- loop ---------------------------------------------------------------------------
@@ -137,8 +159,9 @@ class Daemon:
         self.inputs.close()
         for output in self._record_outputs:
             output.close()
-        if self.serial is not None:
-            self.serial.close()
+        for port in (self.serial, self.gnss_serial):
+            if port is not None:
+                port.close()
         if self._recording is not None:
             self._recording.close()
             self._recording = None
@@ -150,9 +173,10 @@ class Daemon:
         counters = self.ingest.all_counters()
         zenoh_counters = self.inputs.counters()
         counters |= {**zenoh_counters, "inbox_overflow": counters["inbox_overflow"] + zenoh_counters["inbox_overflow"]}
-        if self.serial is not None:
-            counters |= {"serial_disconnects": self.serial.disconnects, "serial_reconnects": self.serial.reconnects,
-                         "serial_foreign_devices": self.serial.foreign_devices}
+        for prefix, port in (("serial", self.serial), ("gnss_serial", self.gnss_serial)):
+            if port is not None:
+                counters |= {f"{prefix}_disconnects": port.disconnects, f"{prefix}_reconnects": port.reconnects,
+                             f"{prefix}_foreign_devices": port.foreign_devices}
         if self.nmea is not None:
             counters |= self.nmea.counters.as_dict()
         return counters
@@ -201,7 +225,8 @@ class Daemon:
                           f"(its liveliness token {self.keys.alive} is up): give this one another unit id")
 
     def _inputs_text(self) -> str:
-        inputs = [f"serial {self.serial.path} @ {self.serial.baud} Bd"] if self.serial is not None else []
+        inputs = [f"{what} {port.path} @ {port.baud} Bd" for what, port in (("serial", self.serial),
+                  ("GNSS receiver", self.gnss_serial)) if port is not None]
         return " + ".join(inputs + self.inputs.texts()) or "no input"
 
     def _record_restart(self, reason: str) -> None:

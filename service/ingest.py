@@ -8,6 +8,7 @@ so one byte stream gives the same records and counters in whatever pieces it is 
 """
 from __future__ import annotations
 
+import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
@@ -20,11 +21,13 @@ from ..protocol.results import ResultRecord
 from .aiding import AidingTrack, AidingWait
 from .align.conventions import DEG
 from .align.earth import Site
+from .arrival_clock import ArrivalClock
 from .config import Config
+from .gnss_receiver import gnss_receiver_for
 from .pipeline import AlignmentPipeline, build_pipeline
 from .restarting import RestartingPipeline
 from .sample_gate import SampleGate
-from .serial_formats import SerialFormat, serial_format_for
+from .serial_formats import Decoded, SerialFormat, serial_format_for
 
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
@@ -46,7 +49,7 @@ class SampleCounters(Counters):
     samples_in_serial: int = count("of samples_in, decoded from serial IMU frames")
     samples_in_zenoh: int = count("of samples_in, from the Zenoh IMU topic")
     samples_used: int = count("samples the gate admitted into the alignment")
-    aiding_frames: int = count("valid serial aiding epochs (type 2) received")
+    aiding_frames: int = count("valid serial aiding epochs received (type-2 frames, a GNSS receiver's epochs)")
     bad_aiding: int = count("aiding epochs refused for what they hold (unknown kind, length, non-finite, beyond what "
                             "a sensor reports), serial or Zenoh")
     bad_messages: int = count("Zenoh IMU messages refused (not msgpack, wrong fields, non-finite)")
@@ -78,6 +81,10 @@ class Ingest:
                       if self.pipeline.aid_width else None)
         self.gate = gate_for(config)
         self.serial_format = serial_format or serial_format_for(config)
+        # a GNSS receiver's own output ([aiding.gnss] input): its epochs go onto the IMU's clock by arrival time
+        self.arrival_clock = ArrivalClock()
+        self.receiver = gnss_receiver_for(config.aiding.gnss, self.arrival_clock)
+        self._receiver_on_imu_line = self.receiver is not None and not config.aiding.gnss.serial
         self.counters = SampleCounters()
         # Hook for the aided modes: (kind, epoch) of every valid serial aiding frame, in arrival order, not yet
         # in its track; :meth:`feed_samples` takes them. At most AIDING_INBOX_LIMIT are held (the rest:
@@ -106,10 +113,26 @@ class Ingest:
         self.alignment.restart()
 
     # ---- inputs -------------------------------------------------------------------------
-    def decode_serial(self, data: bytes) -> np.ndarray:
+    def decode_serial(self, data: bytes, arrival_s: float | None = None) -> np.ndarray:
         """The IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`) that ``data`` completes (any piece of the serial
-        stream, in the configured format); its aiding epochs go to :attr:`aiding_inbox`."""
+        stream, in the configured format, arrived at ``arrival_s``: host monotonic clock, s, now if None); its aiding
+        epochs, and a receiver's on the IMU's line, go to :attr:`aiding_inbox`."""
+        arrival_s = time.monotonic() if arrival_s is None else arrival_s
         decoded = self.serial_format.feed(data)
+        self.arrival_clock.observe(decoded.samples[:, 0], arrival_s)
+        self._hold(decoded)
+        if self._receiver_on_imu_line:
+            self._hold(self.receiver.feed(data, arrival_s))
+        self.counters.samples_in_serial += len(decoded.samples)
+        return decoded.samples
+
+    def decode_receiver(self, data: bytes, arrival_s: float) -> None:
+        """Bytes of the GNSS receiver's own port (``[aiding.gnss] serial``), arrived at ``arrival_s`` (host
+        monotonic clock, s): its epochs go to :attr:`aiding_inbox`."""
+        self._hold(self.receiver.feed(data, arrival_s))
+
+    def _hold(self, decoded: Decoded) -> None:
+        """A decoder's notices and refusals reported (refusals counted), its aiding epochs into the inbox."""
         for text in decoded.notices:
             if text != self._reported["input"]:
                 self._reported["input"] = text
@@ -123,8 +146,6 @@ class Ingest:
                 self.counters.inbox_overflow += 1
             else:
                 self.aiding_inbox.append((epoch.kind, epoch))
-        self.counters.samples_in_serial += len(decoded.samples)
-        return decoded.samples
 
     def _take_aiding_epochs(self, epochs: Iterable[tuple[str, messages.AidingSample]]) -> None:
         """The serial aiding epochs held, then ``epochs`` (another input's), each into its kind's track; others
@@ -195,7 +216,7 @@ class Ingest:
         """Decoder, sample, gate, pipeline (summed over restarts) and aiding track counters, by status name."""
         pipeline_counts = self.alignment.counters()
         counters = {**self.serial_format.counters(), **self.counters.as_dict(), **self.gate.counters.as_dict(),
-                    **pipeline_counts}
+                    **pipeline_counts, **(self.receiver.counters() if self.receiver is not None else {})}
         for kind, track in self.tracks.items():
             counters |= track.counters.as_dict(f"{kind}_")
         return counters

@@ -130,16 +130,18 @@ class SerialPort:
         self._next_attempt = time.monotonic() + self._backoff_s
         self._backoff_s = min(2.0 * self._backoff_s, self.reconnect_max_s)
 
-    def read(self) -> bytes:
-        """Whatever arrived (waits up to 20 ms for a frame's worth); b'' while the port is down."""
+    def read(self, wait: bool = True) -> bytes:
+        """Whatever arrived (waits up to 20 ms for a frame's worth; without ``wait``, what is there: a second port
+        read in the same loop must not hold it); b'' while the port is down."""
         if self._port is None:
             if time.monotonic() >= self._next_attempt:
                 self._open()
             if self._port is None:
-                time.sleep(READ_TIMEOUT_S)
+                if wait:
+                    time.sleep(READ_TIMEOUT_S)
                 return b""
         try:
-            return self._port.read(max(FRAME_BYTES, self._port.in_waiting))
+            return self._port.read(max(FRAME_BYTES, self._port.in_waiting) if wait else self._port.in_waiting)
         except (serial.SerialException, OSError) as exc:
             self.disconnects += 1
             self.last_error = f"serial {self.path} lost: {exc}"

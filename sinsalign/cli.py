@@ -7,7 +7,7 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from sinsalign.protocol.formats import IMU_FORMATS
+from sinsalign.protocol.formats import GNSS_INPUTS, IMU_FORMATS
 
 DESCRIPTION = """\
 Real-time initial alignment of a strapdown INS: recursive Optimal-REQUEST (OPREQ) coarse
@@ -236,7 +236,7 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from sinsalign.tools.bench_command import run_bench
     config = load_config(args.config, {"imu": {"format": args.imu_format}})
     return run_bench(args.log, args.scenario, args.seed, args.duration, args.aid, args.aid_late, args.port,
-                     args.speed, args.start_delay, config.imu)
+                     args.speed, args.start_delay, config.imu, args.aid_format, args.aid_port)
 
 
 def cmd_fuzz(args: argparse.Namespace) -> int:
@@ -429,6 +429,11 @@ def build_parser() -> argparse.ArgumentParser:
                    "frames among the IMU frames; serve with the [aiding] table printed")
     p.add_argument("--aid-late", type=NON_NEGATIVE, default=0.2, metavar="S",
                    help="how far behind the IMU frames the aiding epochs come (s of data, default 0.2)")
+    p.add_argument("--aid-format", choices=GNSS_INPUTS, default="sinsalign", help="the GNSS receiver's output: "
+                   "serial aiding frames on the IMU's line (default), or NMEA 0183 (GGA, RMC, VTG) or UBX NAV-PVT "
+                   "on a pty of its own (its name printed; serve with [aiding.gnss] input and serial)")
+    p.add_argument("--aid-port", metavar="PATH", help="with --aid-format nmea or ubx: write the receiver's output to "
+                   "this serial device instead of a new pty")
     p.add_argument("--imu-format", choices=IMU_FORMATS, default="sinsalign", help="emulate this IMU's frames "
                    "(default sinsalign; a vendor's take their settings, axes and rate from --config)")
     p.add_argument("--config", metavar="TOML", help="the daemon's configuration: [imu] axes and the vendor's table")

@@ -7,10 +7,12 @@ import argparse
 
 from sinsalign.protocol import messages
 from sinsalign.protocol.aiding_log import KINDS
+from sinsalign.protocol.gnss_fix import ReceiverCounters
 from sinsalign.protocol.sequence import SEQUENCE_DOCS
 from sinsalign.protocol.serial_frame import DecoderCounters
 from sinsalign.service.aiding import AidingCounters
 from sinsalign.service.config import reference_markdown
+from sinsalign.service.gnss_receiver import ReceiverInputCounters
 from sinsalign.service.ingest import SampleCounters
 from sinsalign.service.nmea_outputs import NmeaCounters
 from sinsalign.service.sample_gate import GateCounters
@@ -41,6 +43,9 @@ DAEMON_DOCS = {
     "serial_reconnects": "the serial port reopened after a disconnect",
     "serial_foreign_devices": "the serial path came back as another device: not opened",
     "oversized_messages": "Zenoh payloads larger than any valid message, refused in the callback",
+    "gnss_serial_disconnects": "read errors of the GNSS receiver's own port ([aiding.gnss] serial)",
+    "gnss_serial_reconnects": "the GNSS receiver's port reopened after a disconnect",
+    "gnss_serial_foreign_devices": "the GNSS receiver's path came back as another device: not opened",
 }
 
 
@@ -50,6 +55,7 @@ def counter_docs() -> dict[str, str]:
             **{f"aiding_seq_{k}": v for k, v in SEQUENCE_DOCS.items()},
             **{f"zenoh_seq_{k}": v for k, v in SEQUENCE_DOCS.items()}, **SampleCounters.docs(),
             **GateCounters.docs(), **{f"<kind>_{k}": v for k, v in AidingCounters.docs().items()},
+            **ReceiverCounters.docs("gnss_rx_"), **ReceiverInputCounters.docs("gnss_rx_"),
             **NmeaCounters.docs(), **ESTIMATOR_DOCS, **DAEMON_DOCS}
 
 
