@@ -77,21 +77,23 @@ class SinsalignFrames:
 
 class VendorFrames:
     """A vendor IMU's frames: the protocol ``decoder``'s samples, stamped from its counter on the host clock
-    (``clock``, s; anchored once, :class:`~sinsalign.protocol.counter_clock.CounterClock`) and turned from the sensor's
-    axes into the body's (``C_s_b``, :func:`~sinsalign.protocol.axes.axis_map`)."""
+    (``clock``, s; anchored once, :class:`~sinsalign.protocol.counter_clock.CounterClock`; ``counter_only``: from
+    the counter's steps alone) and turned from the sensor's axes into the body's (``C_s_b``,
+    :func:`~sinsalign.protocol.axes.axis_map`)."""
 
     def __init__(self, decoder: VendorDecoder, C_s_b: np.ndarray,
-                 clock: Callable[[], float] = time.monotonic) -> None:
+                 clock: Callable[[], float] = time.monotonic, counter_only: bool = False) -> None:
         self.decoder = decoder
         self.C_s_b = C_s_b
-        self.counter_clock = CounterClock(decoder.counter_modulus, decoder.tick_s, decoder.counter_step)
+        self.counter_clock = CounterClock(decoder.counter_modulus, decoder.tick_s, decoder.counter_step,
+                                          counter_only)
         self._clock = clock
 
     def feed(self, data: bytes) -> Decoded:
         arrival_s = self._clock()
         got = self.decoder.feed(data)
-        t = np.array([self.counter_clock.stamp(int(c), arrival_s) for c in got.counter], dtype=float)
-        keep = ~np.isnan(t)   # a repeated or stale counter: dropped (counted by the clock)
+        t = self.counter_clock.stamp(got.counter, arrival_s)
+        keep = ~np.isnan(t)   # a repeated counter: dropped (counted by the clock)
         rows = np.zeros((int(keep.sum()), SAMPLE_COLUMNS))
         rows[:, 0] = t[keep]
         rows[:, 1:4] = got.dtheta[keep] @ self.C_s_b.T
@@ -115,8 +117,9 @@ VENDOR_DECODERS: dict[str, Callable[[Config], VendorDecoder]] = {
 
 
 def serial_format_for(config: Config, clock: Callable[[], float] = time.monotonic) -> SerialFormat:
-    """The serial format ``[imu] format`` names, with the configured axes (``[imu] axes``)."""
+    """The serial format ``[imu] format`` names, with the configured axes (``[imu] axes``); a vendor's counter is
+    stamped on ``clock`` (s), the host's monotonic clock by default."""
     name = config.imu.format
     if name == "sinsalign":
         return SinsalignFrames()
-    return VendorFrames(VENDOR_DECODERS[name](config), axis_map(config.imu.axes), clock)
+    return VendorFrames(VENDOR_DECODERS[name](config), axis_map(config.imu.axes), clock, config.imu.counter_only)

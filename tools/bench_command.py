@@ -86,7 +86,8 @@ def run_bench(log: str | None, scenario: str, seed: int, duration_s: float | Non
                  f"(serve {kinds}, [aiding] {text})")
     fd, name, pty = _open_port(port)
     if imu.format != "sinsalign":
-        what += f", as {imu.format} frames (serve --imu-format {imu.format} with the same [imu] table)"
+        what += (f", as {imu.format} frames (serve --imu-format {imu.format} with the same [imu] table"
+                 f"{' and counter_only = true: faster than real time' if speed > 1.0 else ''})")
     print(f"virtual IMU on {name}: playing {what} at ×{speed:g} in {start_delay_s:g} s", file=sys.stderr)
     time.sleep(start_delay_s)   # the reader's open() flushes what came before it
     player = FramePlayer(fd, speed, aiding, imu_encoder(imu), receiver, receiver_fd)

@@ -19,8 +19,10 @@ is a bug; :func:`fault_table` shows them, and ``sinsalign fuzz`` exits 1 on any.
    overlong lines, restart marks and garbage at any depth, replayed as ``sinsalign replay`` does;
 6. the configuration (:func:`fuzz_config`): random mappings into ``config_from_mapping`` and random TOML text
    through the loader behind ``--config``.
+7. vendor IMU frames (:func:`fuzz_vendor_frames`): each vendor format's valid frames with bit flips, truncations
+   and planted first bytes, into its decoder, counter clock and axes as the daemon runs them.
 
-Classes 1, 2 and 4 are sized in inputs, 3, 5 and 6 in generated values (numbers and texts); generation is numpy's
+Classes 1, 2, 4 and 7 are sized in inputs, 3, 5 and 6 in generated values (numbers and texts); generation is numpy's
 wherever the interface takes arrays or text, so the run's time goes into the code under test.
 """
 from __future__ import annotations
@@ -49,6 +51,7 @@ from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, T
 from sinsalign.protocol import messages
 from sinsalign.protocol.aiding_log import KINDS as AIDING_LOG_KINDS
 from sinsalign.protocol.aiding_log import LEVER_KEYS
+from sinsalign.protocol.formats import IMU_FORMATS
 from sinsalign.protocol.imu_log import IMU_COLUMNS, RESTART_MARKER, LogFormatError, imu_limits
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.protocol.serial_frame import (
@@ -67,10 +70,12 @@ from sinsalign.protocol.serial_frame import (
 )
 from sinsalign.service.config import Config, ConfigError, config_from_mapping, load_config, tables, value_fields
 from sinsalign.service.ingest import Ingest, gate_for
+from sinsalign.service.serial_formats import serial_format_for
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.files import log_keys
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import daemon_sections, seed_run
+from sinsalign.tools.virtual_imu import VENDOR_ENCODERS
 
 Advance = Callable[[int], None]
 """Told how far a run got (inputs or values since the last call): the progress bar."""
@@ -274,9 +279,9 @@ def count_values(value: object) -> int:
 # --- 1. serial bytes ----------------------------------------------------------------------------------------------
 
 
-def _pieces(rng: np.random.Generator, valid: list[bytes], n: int) -> Iterator[bytes]:
+def _pieces(rng: np.random.Generator, valid: list[bytes], n: int, sync: bytes = SYNC) -> Iterator[bytes]:
     """``n`` pieces of a hostile serial stream: noise, valid frames with bit flips, cut frames, noise with a sync
-    word planted in it, and valid frames."""
+    word (``sync``, two bytes) planted in it, and valid frames."""
     for _ in range(n):
         kind = rng.integers(5)
         if kind == 0:
@@ -292,7 +297,7 @@ def _pieces(rng: np.random.Generator, valid: list[bytes], n: int) -> Iterator[by
         elif kind == 3:
             noise = bytearray(rng.bytes(int(rng.integers(2, 80))))
             at = int(rng.integers(0, len(noise) - 1))
-            noise[at:at + 2] = SYNC
+            noise[at:at + 2] = sync
             yield bytes(noise)
         else:
             yield valid[rng.integers(len(valid))]
@@ -339,6 +344,54 @@ def fuzz_serial(inputs: int = 1_000_000, seed: int = 0, advance: Advance = _igno
                 advance(PROGRESS_STEP)
         tally.count(_fault_counters(decoder.all_counters()))
     advance(inputs % PROGRESS_STEP)
+    return tally
+
+
+# --- 7. vendor IMU frames -----------------------------------------------------------------------------------------
+
+
+VENDOR_FRAME = {"sync": "A5 5A", "length": 16, "endian": "little", "checksum": "xor8", "checksum_from": 2,
+                "fields": ["counter u8", "dtheta_x i16 1e-6", "dtheta_y i16 1e-6", "dtheta_z i16 1e-6",
+                           "dv_x i16 1e-4", "dv_y i16 1e-4", "dv_z i16 1e-4", "checksum u8"]}
+"""The declared frame the fuzzer feeds (``[imu] format = "frame"``)."""
+
+
+def vendor_config(name: str) -> Config:
+    """The configuration of the vendor format ``name`` the fuzzer feeds."""
+    return config_from_mapping({"imu": {"format": name, **({"frame": VENDOR_FRAME} if name == "frame" else {})}})
+
+
+def fuzz_vendor_frames(inputs: int = 200_000, seed: int = 0, advance: Advance = _ignore) -> Tally:
+    """``inputs`` random pieces, spread over the vendor formats, each into its format's decoder as the daemon runs
+    it (counter time stamps on a host clock of its own, axes): valid frames with bit flips, cut frames, noise with
+    the frame's first two bytes planted in it. Escaped: an exception, or a sample row that is not finite. Values:
+    bytes fed."""
+    tally = Tally("vendor IMU frames", "bytes", ())
+    rng = np.random.default_rng(seed)
+    names = [name for name in IMU_FORMATS if name != "sinsalign"]
+    with _timed(tally):
+        for j, name in enumerate(names):
+            config = vendor_config(name)
+            encoder = VENDOR_ENCODERS[name](config.imu)
+            valid = [encoder.encode(k, rng.normal(0, 1e-3, 3), rng.normal(0, 0.05, 3), int(rng.integers(2)))
+                     for k in range(256)]
+            clock = iter(np.cumsum(rng.exponential(2e-3, inputs + 1)))
+            serial_format = serial_format_for(config, lambda c=clock: float(next(c)))
+            share = inputs // len(names) + (j < inputs % len(names))
+            for k, piece in enumerate(_pieces(rng, valid, share, valid[0][:2]), 1):
+                tally.inputs += 1
+                tally.values += len(piece)
+                ok, decoded = tally.guarded(partial(serial_format.feed, piece), partial(_hex, f"{name} piece", piece))
+                if not ok:
+                    serial_format = serial_format_for(config)
+                elif not np.isfinite(decoded.samples).all():
+                    tally.escape(partial(_hex, f"{name} piece (a row not finite)", piece))
+                else:
+                    tally.accepted += len(decoded.samples)
+                if k % PROGRESS_STEP == 0:
+                    advance(PROGRESS_STEP)
+            tally.count(_fault_counters(serial_format.counters()))
+            advance(share % PROGRESS_STEP)
     return tally
 
 
@@ -1128,6 +1181,7 @@ FUZZ_CLASSES: tuple[FuzzClass, ...] = (
     FuzzClass(fuzz_aiding, "inputs", 0.2, "aiding epochs"),
     FuzzClass(fuzz_replay, "values", 0.45, "replay logs"),
     FuzzClass(fuzz_config, "values", 0.2, "configuration"),
+    FuzzClass(fuzz_vendor_frames, "inputs", 0.2, "vendor IMU frames"),
 )
 """The classes in the table's order; the shares of each size make up ``--inputs`` (the serial decoder's) and
 ``--values``."""

@@ -1,10 +1,10 @@
 """``sinsalign fuzz``: hostile input into every input class, counted, and a fault table.
 
 GIVEN a small run of each input class (serial bytes, msgpack messages, the sample gate and pipeline, aiding epochs,
-the replay of logs, the configuration), THEN nothing escapes and every input is accepted, refused with its documented
-error or counted. GIVEN a decoder that raises what its interface does not document, a refusal of more than one line,
-a record that is not finite or records that stop, THEN the run counts them as escaped, keeps the first one's input
-and traceback, and the command exits 1.
+the replay of logs, the configuration, vendor IMU frames), THEN nothing escapes and every input is accepted, refused
+with its documented error or counted. GIVEN a decoder that raises what its interface does not document, a refusal of
+more than one line, a record that is not finite or records that stop, THEN the run counts them as escaped, keeps the
+first one's input and traceback, and the command exits 1.
 """
 from __future__ import annotations
 
@@ -18,7 +18,7 @@ from sinsalign.tools import fuzz
 from sinsalign.cli import main
 
 SMALL = {"fuzz_serial": 3_000, "fuzz_messages": 600, "fuzz_samples": 30_000, "fuzz_aiding": 600,
-         "fuzz_replay": 20_000, "fuzz_config": 4_000}
+         "fuzz_replay": 20_000, "fuzz_config": 4_000, "fuzz_vendor_frames": 1_500}
 """Sizes of a quick run of each class (inputs or values, as the class is sized)."""
 CLI_SIZE = ["--inputs", "2000", "--values", "20000", "--no-progress"]
 

@@ -128,7 +128,7 @@ def test_sequence_gaps_and_wraps_are_counted_by_the_callers_clock(model):
         now[0] = 5.0 + k / RATE_HZ
         times += stream.feed(raw[k]).samples[:, 0].tolist()
     np.testing.assert_allclose(times, [5.0 + k / RATE_HZ for k in sent], atol=1e-9)
-    assert stream.counters()["seq_gaps"] == 2 and stream.counters()["seq_resets"] == 0
+    assert stream.counters()["seq_gaps"] == 2 and stream.counters()["seq_repeats"] == 0
 
 
 @pytest.mark.parametrize("model", MODELS)
