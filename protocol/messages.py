@@ -26,7 +26,8 @@ from .results import ResultRecord
 VERSION = 1
 HEALTH = ("starting", "ok", "degraded", "no_input")
 NOT_FAULTS = frozenset({"frames", "samples_in", "samples_used", "records_published", "serial_reconnects",
-                        "unknown_type", "samples_bridged", "samples_in_serial", "samples_in_zenoh", "aiding_frames",
+                        "unknown_type", "other_messages", "samples_bridged", "samples_in_serial", "samples_in_zenoh",
+                        "aiding_frames",
                         "odo_epochs", "odo_unaided_queries", "odo_accepted", "gnss_epochs", "gnss_unaided_queries",
                         "gnss_vel_accepted", "gnss_pos_accepted", "master_epochs", "master_unaided_queries",
                         "master_vel_accepted", "master_att_accepted", "odo_observations_awaiting_aid",

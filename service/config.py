@@ -43,7 +43,7 @@ from ..protocol.keys import UnitKeys
 from ..protocol.messages import AIDING_FIELDS as AIDING_KINDS
 from ..protocol.nmea_out import LINE_SHARE, line_bits_per_s
 from ..protocol.nmea_out import SENTENCES as NMEA_SENTENCES
-from ..protocol.stim300 import STIM300_DATAGRAMS, STIM300_DV_LSB
+from ..protocol.stim300 import STIM300_CONTENT, STIM300_DATAGRAMS, STIM300_DV_LSB
 from .align.compass import GainSchedule
 from .align.solvers import ALIGNMENT_SOLVERS, SOLVERS
 
@@ -532,6 +532,9 @@ def _check_imu(imu: ImuConfig) -> None:
     if st.datagram not in STIM300_DATAGRAMS:
         raise ConfigError(f"imu.stim300.datagram: {st.datagram:#04x} is not a normal-mode datagram (one of "
                           f"{', '.join(f'{d:#04x}' for d in STIM300_DATAGRAMS)})")
+    if imu.format == "stim300" and "acc" not in STIM300_CONTENT[st.datagram]:
+        raise ConfigError(f"imu.stim300.datagram: {st.datagram:#04x} carries no accelerometers, and an alignment "
+                          f"needs them: set the sensor to 0x91, 0x93, 0xA5 or 0xA7")
     if st.acc_range_g not in STIM300_DV_LSB:
         raise ConfigError(f"imu.stim300.acc_range_g: {st.acc_range_g} g is not a STIM300 variant (one of "
                           f"{', '.join(str(g) for g in STIM300_DV_LSB)})")

@@ -42,9 +42,10 @@ from .zenoh_inputs import ZenohInputs
 from .zenoh_outputs import ZenohOutputs
 
 log = logging.getLogger("sinsalign.daemon")
-UNIT_CHECK_S = 0.3
-"""How long a start connected to other Zenoh nodes looks for another daemon's liveliness token of the same unit
-(s): the tokens arrive some 50 ms after the session opens. Without any peer there is nothing to wait for."""
+UNIT_CHECK_S = 1.0
+"""How long a start connected to other Zenoh nodes, or configured to connect to some, looks for another daemon's
+liveliness token of the same unit (s): the connection and then the tokens arrive some 50 ms after the session
+opens, later on a loaded machine. Without any peer to expect there is nothing to wait for."""
 
 
 def gnss_port(config: Config) -> SerialPort | None:
@@ -215,8 +216,8 @@ class Daemon:
         """Raise ConfigError if another daemon's liveliness token for this unit is on the network: two daemons on one
         unit id would interleave one attitude stream. (A peer that connects later is not seen here.)"""
         info = self.session.info
-        connected = bool(list(info.peers_zid()) or list(info.routers_zid()))
-        deadline = time.monotonic() + (UNIT_CHECK_S if connected else 0.0)
+        expected = bool(self.config.zenoh.connect or list(info.peers_zid()) or list(info.routers_zid()))
+        deadline = time.monotonic() + (UNIT_CHECK_S if expected else 0.0)
         while not any(reply.ok is not None for reply in self.session.liveliness().get(self.keys.alive, timeout=0.1)):
             if time.monotonic() >= deadline:
                 return

@@ -7,9 +7,13 @@ import argparse
 
 from sinsalign.protocol import messages
 from sinsalign.protocol.aiding_log import KINDS
+from sinsalign.protocol.declared_frame import FrameCounters
 from sinsalign.protocol.gnss_fix import ReceiverCounters
+from sinsalign.protocol.kvh import KvhCounters
 from sinsalign.protocol.sequence import SEQUENCE_DOCS
 from sinsalign.protocol.serial_frame import DecoderCounters
+from sinsalign.protocol.stim300 import Stim300Counters
+from sinsalign.protocol.xsens import XsensCounters
 from sinsalign.service.aiding import AidingCounters
 from sinsalign.service.config import reference_markdown
 from sinsalign.service.gnss_receiver import ReceiverInputCounters
@@ -50,8 +54,10 @@ DAEMON_DOCS = {
 
 
 def counter_docs() -> dict[str, str]:
-    """Every status counter, by name, with what it counts."""
-    return {**DecoderCounters.docs(), **{f"seq_{k}": v for k, v in SEQUENCE_DOCS.items()},
+    """Every status counter, by name, with what it counts (a name the project's frame and a vendor's share: as the
+    project's frame counts it)."""
+    vendor = {**Stim300Counters.docs(), **KvhCounters.docs(), **XsensCounters.docs(), **FrameCounters.docs()}
+    return {**vendor, **DecoderCounters.docs(), **{f"seq_{k}": v for k, v in SEQUENCE_DOCS.items()},
             **{f"aiding_seq_{k}": v for k, v in SEQUENCE_DOCS.items()},
             **{f"zenoh_seq_{k}": v for k, v in SEQUENCE_DOCS.items()}, **SampleCounters.docs(),
             **GateCounters.docs(), **{f"<kind>_{k}": v for k, v in AidingCounters.docs().items()},

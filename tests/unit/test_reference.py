@@ -6,11 +6,13 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from sinsalign.protocol.formats import IMU_FORMATS
 from sinsalign.service.align.earth import Site
 from sinsalign.service.config import Config, config_from_mapping, tables, value_fields
 from sinsalign.service.ingest import Ingest
 from sinsalign.service.modes import MODES
 from sinsalign.service.pipeline import build_pipeline
+from sinsalign.tools.fuzz import vendor_config
 from sinsalign.tools.reference import SECTIONS, counter_docs, reference
 
 from sinsalign.cli import main
@@ -51,3 +53,9 @@ def test_every_counter_a_daemon_reports_in_any_mode_is_listed(aids: list[str]) -
     unlisted = {n for n in names if n not in listed
                 and not any(n.startswith(f"{k}_") and f"<kind>_{n[len(k) + 1:]}" in listed for k in kinds)}
     assert not unlisted
+
+
+@pytest.mark.parametrize("name", [name for name in IMU_FORMATS if name != "sinsalign"])
+def test_every_counter_of_every_imu_format_is_listed(name: str) -> None:
+    config = vendor_config(name)
+    assert not set(Ingest(config, lambda text: None).all_counters()) - set(counter_docs())

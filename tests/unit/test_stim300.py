@@ -17,6 +17,7 @@ from sinsalign.protocol.stim300 import (
     Stim300Encoder,
     stim300_layout,
 )
+from sinsalign.service.config import ConfigError, config_from_mapping
 from sinsalign.service.serial_formats import VendorFrames
 
 RATE_HZ = 200.0
@@ -187,6 +188,8 @@ def test_a_wrong_datagram_id_is_told_once_without_crc_noise():
 def test_a_datagram_without_accelerometers_is_refused():
     with pytest.raises(ValueError, match="no accelerometers"):
         Stim300Decoder(RATE_HZ, 0x92)
+    with pytest.raises(ConfigError, match=r"imu\.stim300\.datagram: 0x90 carries no accelerometers"):
+        config_from_mapping({"imu": {"format": "stim300", "stim300": {"datagram": 0x90}}})
 
 
 def test_full_scale_fields_decode():
