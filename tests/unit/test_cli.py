@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from sinsalign.protocol.axes import axis_map
 from sinsalign.protocol.imu_log import open_imu_log
+from sinsalign.protocol.kvh import KvhDecoder
 from sinsalign.protocol.serial_frame import DTHETA_LSB_RAD, DV_LSB_MPS, MSG_IMU, FrameDecoder, decode_imu
 from sinsalign.tools.virtual_imu import PtyPair
 
@@ -40,9 +42,8 @@ def test_a_number_out_of_range_is_a_usage_error(capsys: pytest.CaptureFixture[st
     assert message in err and "argument" in err
 
 
-def read_imu_frames(fd: int, stop: threading.Event, into: list) -> None:
-    """Decode IMU frames from a pty's master side until ``stop`` and no more bytes."""
-    decoder = FrameDecoder()
+def read_bytes(fd: int, stop: threading.Event, into: bytearray) -> None:
+    """Everything written into the pty's other end, until ``stop`` and the line is drained."""
     while True:
         ready, _, _ = select.select([fd], [], [], 0.2)
         if not ready:
@@ -50,10 +51,9 @@ def read_imu_frames(fd: int, stop: threading.Event, into: list) -> None:
                 return
             continue
         try:
-            data = os.read(fd, 65536)
+            into.extend(os.read(fd, 65536))
         except OSError:
             return
-        into.extend(decode_imu(f) for f in decoder.feed(data) if f.msg_type == MSG_IMU)
 
 
 def test_bench_plays_the_data_sim_writes_for_the_same_seed(tmp_path: Path) -> None:
@@ -62,9 +62,9 @@ def test_bench_plays_the_data_sim_writes_for_the_same_seed(tmp_path: Path) -> No
     assert main(["sim", "seed003-20", "--seed", "2", "--duration", "0.5", "--out-dir", str(tmp_path)]) == 0
     t, dtheta, dv = (np.concatenate(c) for c in zip(*open_imu_log(tmp_path / "imu.csv").blocks(), strict=True))
     pty = PtyPair()
-    frames: list = []
+    raw = bytearray()
     stop = threading.Event()
-    reader = threading.Thread(target=read_imu_frames, args=(pty.master_fd, stop, frames))
+    reader = threading.Thread(target=read_bytes, args=(pty.master_fd, stop, raw))
     reader.start()
     try:
         assert main(["bench", "--scenario", "seed003-20", "--seed", "2", "--duration", "0.5", "--port",
@@ -73,10 +73,38 @@ def test_bench_plays_the_data_sim_writes_for_the_same_seed(tmp_path: Path) -> No
         stop.set()
         reader.join()
         pty.close()
+    frames = [decode_imu(f) for f in FrameDecoder().feed(bytes(raw)) if f.msg_type == MSG_IMU]
     assert len(frames) == len(t)
     np.testing.assert_allclose([f.t for f in frames], t, atol=1e-9)
     np.testing.assert_allclose([f.dtheta for f in frames], dtheta, rtol=0, atol=DTHETA_LSB_RAD)
     np.testing.assert_allclose([f.dv for f in frames], dv, rtol=0, atol=DV_LSB_MPS)
+
+
+def test_bench_emulates_a_vendor_imu_with_the_axes_and_frame_of_its_configuration(tmp_path: Path) -> None:
+    """bench --imu-format kvh1750 --config: the frames a KVH decoder reads back are the scenario's increments in the
+    sensor's axes (x forward, y right, z down), to float32."""
+    config = tmp_path / "kvh.toml"
+    config.write_text('[imu]\naxes = ["y", "x", "-z"]\nrate_hz = 200.0\n')
+    assert main(["sim", "seed000-swing", "--seed", "2", "--duration", "0.5", "--out-dir", str(tmp_path)]) == 0
+    _, dtheta, dv = (np.concatenate(c) for c in zip(*open_imu_log(tmp_path / "imu.csv").blocks(), strict=True))
+    pty = PtyPair()
+    raw = bytearray()
+    stop = threading.Event()
+    reader = threading.Thread(target=read_bytes, args=(pty.master_fd, stop, raw))
+    reader.start()
+    try:
+        assert main(["bench", "--scenario", "seed000-swing", "--seed", "2", "--duration", "0.5", "--port",
+                     pty.port_name, "--start-delay", "0", "--speed", "50", "--imu-format", "kvh1750",
+                     "--config", str(config)]) == 0
+    finally:
+        stop.set()
+        reader.join()
+        pty.close()
+    got = KvhDecoder("1750", 200.0).feed(bytes(raw))
+    C_b_s = axis_map(("y", "x", "-z")).T
+    assert len(got.counter) == len(dtheta) and (np.diff(got.counter) % 128 == 1).all()
+    np.testing.assert_allclose(got.dtheta, dtheta @ C_b_s.T, rtol=1e-6, atol=1e-12)
+    np.testing.assert_allclose(got.dv, dv @ C_b_s.T, rtol=1e-6, atol=1e-9)
 
 
 def test_an_eval_table_is_stamped_with_its_command_and_commit(tmp_path: Path,
