@@ -56,24 +56,29 @@ def read_bytes(fd: int, stop: threading.Event, into: bytearray) -> None:
             return
 
 
-def test_bench_plays_the_data_sim_writes_for_the_same_seed(tmp_path: Path) -> None:
-    """seed003 draws each IMU's bias signs per seed, and bench --seed draws them as sim --seed does: frames read back
-    from a pty agree with sim's log of the same seed to the wire's resolution."""
-    assert main(["sim", "seed003-20", "--seed", "2", "--duration", "0.5", "--out-dir", str(tmp_path)]) == 0
-    t, dtheta, dv = (np.concatenate(c) for c in zip(*open_imu_log(tmp_path / "imu.csv").blocks(), strict=True))
+def bench_bytes(options: list[str]) -> bytes:
+    """What ``sinsalign bench OPTIONS`` writes into a pty at ×50, read from its other end."""
     pty = PtyPair()
     raw = bytearray()
     stop = threading.Event()
     reader = threading.Thread(target=read_bytes, args=(pty.master_fd, stop, raw))
     reader.start()
     try:
-        assert main(["bench", "--scenario", "seed003-20", "--seed", "2", "--duration", "0.5", "--port",
-                     pty.port_name, "--start-delay", "0", "--speed", "50"]) == 0
+        assert main(["bench", *options, "--port", pty.port_name, "--start-delay", "0", "--speed", "50"]) == 0
     finally:
         stop.set()
         reader.join()
         pty.close()
-    frames = [decode_imu(f) for f in FrameDecoder().feed(bytes(raw)) if f.msg_type == MSG_IMU]
+    return bytes(raw)
+
+
+def test_bench_plays_the_data_sim_writes_for_the_same_seed(tmp_path: Path) -> None:
+    """seed003 draws each IMU's bias signs per seed, and bench --seed draws them as sim --seed does: frames read back
+    from a pty agree with sim's log of the same seed to the wire's resolution."""
+    assert main(["sim", "seed003-20", "--seed", "2", "--duration", "0.5", "--out-dir", str(tmp_path)]) == 0
+    t, dtheta, dv = (np.concatenate(c) for c in zip(*open_imu_log(tmp_path / "imu.csv").blocks(), strict=True))
+    raw = bench_bytes(["--scenario", "seed003-20", "--seed", "2", "--duration", "0.5"])
+    frames = [decode_imu(f) for f in FrameDecoder().feed(raw) if f.msg_type == MSG_IMU]
     assert len(frames) == len(t)
     np.testing.assert_allclose([f.t for f in frames], t, atol=1e-9)
     np.testing.assert_allclose([f.dtheta for f in frames], dtheta, rtol=0, atol=DTHETA_LSB_RAD)
@@ -87,20 +92,9 @@ def test_bench_emulates_a_vendor_imu_with_the_axes_and_frame_of_its_configuratio
     config.write_text('[imu]\naxes = ["y", "x", "-z"]\nrate_hz = 200.0\n')
     assert main(["sim", "seed000-swing", "--seed", "2", "--duration", "0.5", "--out-dir", str(tmp_path)]) == 0
     _, dtheta, dv = (np.concatenate(c) for c in zip(*open_imu_log(tmp_path / "imu.csv").blocks(), strict=True))
-    pty = PtyPair()
-    raw = bytearray()
-    stop = threading.Event()
-    reader = threading.Thread(target=read_bytes, args=(pty.master_fd, stop, raw))
-    reader.start()
-    try:
-        assert main(["bench", "--scenario", "seed000-swing", "--seed", "2", "--duration", "0.5", "--port",
-                     pty.port_name, "--start-delay", "0", "--speed", "50", "--imu-format", "kvh1750",
-                     "--config", str(config)]) == 0
-    finally:
-        stop.set()
-        reader.join()
-        pty.close()
-    got = KvhDecoder("1750", 200.0).feed(bytes(raw))
+    raw = bench_bytes(["--scenario", "seed000-swing", "--seed", "2", "--duration", "0.5", "--imu-format", "kvh1750",
+                       "--config", str(config)])
+    got = KvhDecoder("1750", 200.0).feed(raw)
     C_b_s = axis_map(("y", "x", "-z")).T
     assert len(got.counter) == len(dtheta) and (np.diff(got.counter) % 128 == 1).all()
     np.testing.assert_allclose(got.dtheta, dtheta @ C_b_s.T, rtol=1e-6, atol=1e-12)
