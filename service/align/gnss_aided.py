@@ -332,7 +332,10 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
         covariance = self.solver.covariance()
         if covariance is None:
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
-        heading, level = np.sqrt(covariance[2, 2]), np.sqrt(0.5 * (covariance[0, 0] + covariance[1, 1]))
+        heading_var, level_var = covariance[2, 2], 0.5 * (covariance[0, 0] + covariance[1, 1])
+        if not (heading_var > 0.0 and level_var > 0.0):   # a fit not yet determined (or NaN): not a σ of 0 or NaN
+            return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
+        heading, level = np.sqrt(heading_var), np.sqrt(level_var)
         factor = self.source.sigma_factor
         return (min(float(factor * heading / DEG), SIGMA_UNKNOWN_DEG),
                 min(float(factor * level / DEG), SIGMA_UNKNOWN_DEG))

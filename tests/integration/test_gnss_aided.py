@@ -195,6 +195,7 @@ def test_a_1_hz_receivers_glitch_in_its_fifth_fix_is_screened_out(formula):
     t, phi = errors_deg(scenario.for_seed(1), records)
     _, phi_clean = errors_deg(scenario.for_seed(1), clean)
     sigma = np.array([r.heading_sigma_deg for r in records])
+    assert np.isfinite(sigma).all() and (sigma > 0).all()   # a fit still undetermined says so, not NaN
     late = t >= 10.0
     assert (np.abs(phi[late, 2] - phi_clean[late, 2]) <= 0.25 * sigma[late]).all()
 
