@@ -29,6 +29,7 @@ import numpy as np
 
 from .counters import Counters, count
 from .crc import crc32_mpeg2, sum8, xor8
+from .framing import sync_tail
 from .vendor import SensorSamples
 
 if TYPE_CHECKING:
@@ -296,10 +297,9 @@ class DeclaredFrameDecoder:
         while True:
             start = buf.find(spec.sync, pos)
             if start < 0:
-                # keep what may be the start of a sync word split by the read
-                keep = max((n for n in range(len(spec.sync)) if buf.endswith(spec.sync[:n])), default=0)
-                self.counts.bytes_skipped += max(len(buf) - pos - keep, 0)
-                pos = max(len(buf) - keep, pos)
+                keep = sync_tail(buf, pos, spec.sync)
+                self.counts.bytes_skipped += len(buf) - pos - keep
+                pos = len(buf) - keep
                 break
             self.counts.bytes_skipped += start - pos
             pos = start

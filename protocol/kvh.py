@@ -20,6 +20,7 @@ import numpy as np
 
 from .counters import Counters, count
 from .crc import crc32_mpeg2
+from .framing import sync_tail
 from .vendor import SensorSamples
 
 STANDARD_GRAVITY = 9.80665
@@ -99,8 +100,7 @@ class KvhDecoder:
         while True:
             start = buf.find(SYNC, pos)
             if start < 0:
-                # keep the tail that may be the first bytes of a header
-                keep = next(n for n in (2, 1, 0) if n <= len(buf) - pos and buf.endswith(SYNC[:n]))
+                keep = sync_tail(buf, pos, SYNC)
                 self.counts.bytes_skipped += len(buf) - pos - keep
                 pos = len(buf) - keep
                 break

@@ -42,6 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .counters import Counters, count
+from .framing import sync_tail
 from .messages import AIDING_FIELDS, AidingSample, MessageError
 from .plausibility import aiding_problem
 from .sequence import SequenceTracker
@@ -242,8 +243,7 @@ class FrameDecoder:
         while True:
             start = buf.find(SYNC, pos)
             if start < 0:
-                # keep a trailing 0xAA: it may be the first half of a sync word
-                keep = 1 if buf.endswith(SYNC[:1]) else 0
+                keep = sync_tail(buf, pos, SYNC)
                 self.counters.bytes_skipped += len(buf) - pos - keep
                 pos = len(buf) - keep
                 break

@@ -34,6 +34,7 @@ import numpy as np
 
 from .counters import Counters, count
 from .crc import sum8
+from .framing import sync_tail
 from .vendor import SensorSamples
 
 if TYPE_CHECKING:
@@ -115,7 +116,7 @@ class XsensDecoder:
         while True:
             start = buf.find(SYNC, pos)
             if start < 0:
-                keep = 1 if buf.endswith(SYNC[:1]) else 0   # a trailing preamble may start the next message
+                keep = sync_tail(buf, pos, SYNC)
                 self.counts.bytes_skipped += len(buf) - pos - keep
                 pos = len(buf) - keep
                 break
