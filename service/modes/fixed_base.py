@@ -129,3 +129,7 @@ class FixedBase:
             solution = smaller_sigma_solution(solution, C_fine, sigma.heading_deg, sigma.level_deg)
         aligned = p.fine.schedule_complete and solution.heading_sigma_deg <= threshold
         return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)
+
+
+MODE = FixedBase
+"""The mode this module declares (:data:`~service.modes.MODES`)."""

@@ -120,3 +120,7 @@ class Gnss(KalmanMode):
     def counters(self) -> dict[str, int]:
         """The filter's counts and the coarse stage's screen."""
         return {**super().counters(), **gnss_coarse_counters(self.p)}
+
+
+MODE = Gnss
+"""The mode this module declares (:data:`~service.modes.MODES`)."""

@@ -92,3 +92,7 @@ class Odometer(KalmanMode):
         """The filter's counts, and the multistage pairs left out as outliers."""
         result = self.p.coarse.source.result
         return {**super().counters(), "odo_outlier_pairs": 0 if result is None else int((~result.kept).sum())}
+
+
+MODE = Odometer
+"""The mode this module declares (:data:`~service.modes.MODES`)."""

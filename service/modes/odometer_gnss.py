@@ -68,3 +68,7 @@ class OdometerGnss(KalmanMode):
     def counters(self) -> dict[str, int]:
         """The filter's counts and the coarse stage's screen of the fixes."""
         return {**super().counters(), **gnss_coarse_counters(self.p)}
+
+
+MODE = OdometerGnss
+"""The mode this module declares (:data:`~service.modes.MODES`)."""

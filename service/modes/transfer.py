@@ -124,3 +124,7 @@ class Transfer(KalmanMode):
         M, sigma = self.mounting(coarse)
         q = quat_from_dcm(M)
         return replace(record, mount_q=tuple(float(c) for c in q / np.linalg.norm(q)), mount_sigma_deg=sigma)
+
+
+MODE = Transfer
+"""The mode this module declares (:data:`~service.modes.MODES`)."""
