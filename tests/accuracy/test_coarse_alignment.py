@@ -58,6 +58,7 @@ def test_heading_sigma_is_honest(swing_runs):
     assert h.first_converged_s < 120.0   # and it does converge
 
 
+@pytest.mark.slow
 def test_static_base_600_s():
     runs = monte_carlo("static", SEEDS, COARSE_ONLY, progress=False)
     s = window_stats(runs, (550, 600))
@@ -75,6 +76,7 @@ def test_auto_takes_gls_where_the_datasheet_gyro_walk_dominates(name: str, chose
     assert auto_solver(grade, scenario.site.lat, scenario.site.gravity, 0.1) == "opreq"
 
 
+@pytest.mark.slow
 def test_turntable_with_a_noisy_gyro():
     """OPREQ leaves the gyro's angle random walk out of its noise model (it cannot weigh a walk); the GLS
     solver, which the default "auto" takes for this datasheet, whitens it and reaches the walk's floor
@@ -94,6 +96,7 @@ def test_turntable_with_a_noisy_gyro():
     assert honesty(opreq).converged_beyond_3sigma == 0 and honesty(gls).converged_beyond_3sigma == 0
 
 
+@pytest.mark.slow
 def test_gls_on_the_swing_keeps_the_limit_without_opreqs_offset():
     """The swinging body turns the accelerometer bias; without the swing-bias fit OPREQ's direction fit takes
     +0.004° of it as heading, the whitened-increment fit (its disturbance term) almost none."""

@@ -136,6 +136,7 @@ def test_compass_alone_levels_without_ringing(name):
     assert np.abs(run.phi_deg[after, :2] - run.limit_deg[:2]).max() < 0.01
 
 
+@pytest.mark.slow
 def test_stored_data_shortens_compass_settling_by_30_percent():
     plain = monte_carlo("seed001-swing", SEEDS, NO_STORE, progress=False, initial_error_deg=COMPASS_START_DEG)
     stored = monte_carlo("seed001-swing", SEEDS, progress=False, initial_error_deg=COMPASS_START_DEG)

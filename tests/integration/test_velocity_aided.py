@@ -129,6 +129,7 @@ def test_without_imu_errors_the_ideal_scenario_has_no_odometer_noise():
     assert get_scenario("seed003-80-ideal").errors == ImuErrors()
 
 
+@pytest.mark.slow
 def test_odometer_scale_factor_and_lever_arm_are_fitted_in_the_window_and_carried_on_by_the_kalman_stage():
     # a 0.5 % scale factor alone pulls the coarse heading by tens of degrees and a 1.7-m lever arm by
     # two; fitted with the attitude (priors 1 % and 1 m), both cost little, and the Kalman stage
