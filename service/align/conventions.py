@@ -21,6 +21,8 @@ Every function is vectorised over leading axes: a quaternion is ``(..., 4)``, a 
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 DEG = np.pi / 180.0
@@ -122,25 +124,40 @@ def dcm_from_quat(q: np.ndarray) -> np.ndarray:
 
 
 def quat_from_dcm(C: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w ≥ 0) of a rotation matrix, via the symmetric 4×4 eigenproblem.
+    """Unit quaternion (w ≥ 0) of a rotation matrix C (..., 3, 3), by Shepperd's method.
 
-    Bar-Itzhack's method: robust for every rotation and it returns the nearest rotation when
-    C is slightly non-orthogonal.
+    For a rotation, 4 q qᵀ = K + I with Bar-Itzhack's symmetric K; its diagonal holds 4 q_i², and the column of the
+    largest one is q times a factor far from zero, normalised: exact for every rotation, 180° turns included, with
+    no eigen-solve. A slightly non-orthogonal C gives a quaternion off its nearest rotation by the order of C's
+    error. One matrix goes through plain floats (the records' case, no numpy call per element); a stack through
+    the same operations in numpy: the same bits either way.
     """
     C = np.asarray(C, dtype=float)
-    K = np.empty((*C.shape[:-2], 4, 4))
-    K[..., 0, 0] = C[..., 0, 0] + C[..., 1, 1] + C[..., 2, 2]
-    K[..., 1, 1] = C[..., 0, 0] - C[..., 1, 1] - C[..., 2, 2]
-    K[..., 2, 2] = -C[..., 0, 0] + C[..., 1, 1] - C[..., 2, 2]
-    K[..., 3, 3] = -C[..., 0, 0] - C[..., 1, 1] + C[..., 2, 2]
-    K[..., 0, 1] = K[..., 1, 0] = C[..., 2, 1] - C[..., 1, 2]
-    K[..., 0, 2] = K[..., 2, 0] = C[..., 0, 2] - C[..., 2, 0]
-    K[..., 0, 3] = K[..., 3, 0] = C[..., 1, 0] - C[..., 0, 1]
-    K[..., 1, 2] = K[..., 2, 1] = C[..., 1, 0] + C[..., 0, 1]
-    K[..., 1, 3] = K[..., 3, 1] = C[..., 0, 2] + C[..., 2, 0]
-    K[..., 2, 3] = K[..., 3, 2] = C[..., 2, 1] + C[..., 1, 2]
-    _, vectors = np.linalg.eigh(K)
-    return quat_normalize(vectors[..., :, -1])
+    if C.shape == (3, 3):
+        return np.array(_shepperd(*C.ravel().tolist()))
+    c00, c01, c02 = C[..., 0, 0], C[..., 0, 1], C[..., 0, 2]
+    c10, c11, c12 = C[..., 1, 0], C[..., 1, 1], C[..., 1, 2]
+    c20, c21, c22 = C[..., 2, 0], C[..., 2, 1], C[..., 2, 2]
+    d = np.stack((1.0 + c00 + c11 + c22, 1.0 + c00 - c11 - c22, 1.0 - c00 + c11 - c22, 1.0 - c00 - c11 + c22), -1)
+    wx, wy, wz = c21 - c12, c02 - c20, c10 - c01
+    xy, xz, yz = c10 + c01, c02 + c20, c21 + c12
+    columns = np.stack((np.stack((d[..., 0], wx, wy, wz), -1), np.stack((wx, d[..., 1], xy, xz), -1),
+                        np.stack((wy, xy, d[..., 2], yz), -1), np.stack((wz, xz, yz, d[..., 3]), -1)), -2)
+    best = np.argmax(d, axis=-1)[..., None, None]
+    return quat_normalize(np.take_along_axis(columns, best, axis=-2)[..., 0, :])
+
+
+def _shepperd(c00: float, c01: float, c02: float, c10: float, c11: float, c12: float, c20: float, c21: float,
+              c22: float) -> tuple[float, float, float, float]:
+    """:func:`quat_from_dcm` of one matrix in plain floats, operation for operation (then quat_normalize's)."""
+    d = (1.0 + c00 + c11 + c22, 1.0 + c00 - c11 - c22, 1.0 - c00 + c11 - c22, 1.0 - c00 - c11 + c22)
+    wx, wy, wz = c21 - c12, c02 - c20, c10 - c01
+    xy, xz, yz = c10 + c01, c02 + c20, c21 + c12
+    best = d.index(max(d))
+    w, x, y, z = ((d[0], wx, wy, wz), (wx, d[1], xy, xz), (wy, xy, d[2], yz), (wz, xz, yz, d[3]))[best]
+    norm = math.sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    return (-w, -x, -y, -z) if w < 0.0 else (w, x, y, z)
 
 
 def dcm_from_euler(heading: np.ndarray, pitch: np.ndarray, roll: np.ndarray) -> np.ndarray:

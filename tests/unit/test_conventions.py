@@ -10,6 +10,7 @@ from sinsalign.service.align.conventions import (
     quat_from_dcm,
     quat_from_rotvec,
     quat_multiply,
+    quat_normalize,
     quat_rotate,
     rotvec_from_quat,
     skew,
@@ -95,3 +96,30 @@ def test_with_heading_of_keeps_one_tilt_and_takes_the_other_heading(dpsi_deg):
     np.testing.assert_allclose(C @ C.T, np.eye(3), atol=1e-15)
     np.testing.assert_allclose(C.T[:, 2], C_level.T[:, 2], atol=1e-15)
     assert abs(misalignment(C, C_heading)[2]) < 1e-9
+
+
+def _eigen_quat(C: np.ndarray) -> np.ndarray:
+    """The nearest rotation's quaternion from the 4×4 eigenproblem (Bar-Itzhack), w ≥ 0: the reference."""
+    K = np.array([[C[0, 0] + C[1, 1] + C[2, 2], C[2, 1] - C[1, 2], C[0, 2] - C[2, 0], C[1, 0] - C[0, 1]],
+                  [C[2, 1] - C[1, 2], C[0, 0] - C[1, 1] - C[2, 2], C[1, 0] + C[0, 1], C[0, 2] + C[2, 0]],
+                  [C[0, 2] - C[2, 0], C[1, 0] + C[0, 1], -C[0, 0] + C[1, 1] - C[2, 2], C[2, 1] + C[1, 2]],
+                  [C[1, 0] - C[0, 1], C[0, 2] + C[2, 0], C[2, 1] + C[1, 2], -C[0, 0] - C[1, 1] + C[2, 2]]])
+    q = np.linalg.eigh(K)[1][:, -1]
+    return q if q[0] >= 0 else -q
+
+
+def test_quat_from_dcm_agrees_with_the_eigen_solution_and_gives_one_matrix_the_bits_of_a_stack():
+    rng = np.random.default_rng(7)
+    q_true = rng.standard_normal((500, 4))
+    q_true[:4] = [[0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1], [0, 0.6, 0.8, 0]]   # 180° turns: w = 0
+    q_true = quat_normalize(q_true)
+    C = dcm_from_quat(q_true)
+    stack = quat_from_dcm(C)
+    for k in range(len(C)):
+        one = quat_from_dcm(C[k])
+        assert one.tobytes() == stack[k].tobytes()
+        if q_true[k, 0] > 1e-6:   # a 180° turn's sign is free (q and -q at w = 0): its rotation is checked below
+            np.testing.assert_allclose(one, _eigen_quat(C[k]), atol=2e-15)
+        np.testing.assert_allclose(dcm_from_quat(one), C[k], atol=2e-15)
+    assert np.all(stack[:, 0] >= 0)
+    np.testing.assert_allclose(np.abs(np.sum(stack * q_true, axis=-1)), 1.0, atol=1e-15)
