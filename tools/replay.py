@@ -5,9 +5,8 @@ import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
-from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
 from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.protocol.results import ResultRecord
@@ -63,6 +62,31 @@ def _open_partial(partial: Path, out_path: Path) -> TextIO:
                       "if not") from None
 
 
+class _NoBar:
+    """What :func:`_progress_bar` hands out when nothing is shown: rich is then never imported (start-up time)."""
+
+    def __enter__(self) -> _NoBar:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        return None
+
+    def add_task(self, *args: Any, **kwargs: Any) -> int:
+        return 0
+
+    def update(self, *args: Any, **kwargs: Any) -> None:
+        return None
+
+
+def _progress_bar(show: bool) -> Any:
+    """The replay's progress bar on stderr (rich), or a bar that shows nothing."""
+    if not show:
+        return _NoBar()
+    from rich.progress import BarColumn, Progress, TextColumn, TimeRemainingColumn
+    return Progress(TextColumn("replay"), BarColumn(), TextColumn("{task.fields[info]}"), TimeRemainingColumn(),
+                    transient=True)
+
+
 def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress: bool | None = None,
            aids: dict[str, str] | None = None) -> ReplaySummary:
     """Process ``imu_csv`` (with aiding logs ``aids``: kind → path) and write one result per output
@@ -86,8 +110,7 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     partial = out_path.with_name(f".{out_path.name}.partial")
     out = _open_partial(partial, out_path)
     try:
-        with out, Progress(TextColumn("replay"), BarColumn(), TextColumn("{task.fields[info]}"), TimeRemainingColumn(),
-                           disable=not show, transient=True) as bar:
+        with out, _progress_bar(show) as bar:
             task = bar.add_task("replay", total=size, info="")
             for restart, t, dtheta, dv in log.segments(limits=log.limits):
                 if restart is not None:
