@@ -289,13 +289,14 @@ class AlignmentPipeline:
         folded = 0
         solver = self.coarse.solver
         for end in range(M - 1, len(t), M):
+            measured = folded   # the block's observations, whether an epoch's record folded some of them already
             for j in epochs[(epochs > end - M) & (epochs <= end)]:
                 folded = _fold_until(solver, due, dK, trace_R, folded, j)
                 if counts[j] > self._emitted_count:
                     records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
-            measured, folded = folded, _fold_until(solver, due, dK, trace_R, folded, end)
+            folded = _fold_until(solver, due, dK, trace_R, folded, end)
             if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
                 self._measure_noise(observed_s[measured:folded], observed_alpha[measured:folded])
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
