@@ -19,7 +19,7 @@ from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
-from .align.noise_check import VERDICT_STEPS, NoiseMeter
+from .align.noise_check import NoiseMeter
 from .align.sensor_model import SensorGrade, auto_solver
 from .align.solvers import CentredWahba, RecursiveK
 from .config import Config, ConfigError
@@ -149,7 +149,7 @@ class AlignmentPipeline:
         self._step_epoch = np.full(len(self.mode.aids), -1.0)   # each kind's newest epoch at the last control step
         self._restarted = t_start is not None
         d = self.config.disturbance
-        self.motion = (MotionMonitor(self.coarse.source, d.velocity_threshold_mps, d.window_s, d.check_interval_s,
+        self.motion = (MotionMonitor(self.site, d.velocity_threshold_mps, d.window_s, d.check_interval_s,
                                      d.hold_s) if d.enabled and self.checks_translation else None)
         self._next_check_s = d.check_interval_s
         # the meter's α history lives in these estimators' b0 axes (the figures found so far stay in sigma_grade)
@@ -311,11 +311,7 @@ class AlignmentPipeline:
         """Feed one block's observations (elapsed (M,) s, α (M, 3) m/s) to the noise meter; every
         :data:`VERDICT_STEPS` observations σ takes the figures the data show (service/align/noise_check.py), and the
         operator is told once of a datasheet far too quiet."""
-        verdict_due = False
-        for elapsed_k, alpha_k in zip(elapsed_s, alpha, strict=True):
-            self.noise.feed(float(elapsed_k), alpha_k)
-            verdict_due = verdict_due or self.noise.steps % VERDICT_STEPS == 0
-        if not verdict_due:
+        if not self.noise.feed(elapsed_s, alpha):
             return
         if self.coarse.solver.n_obs:
             self.noise.C_n0_b0 = dcm_from_quat(self.coarse.q_b_n0).T
@@ -369,16 +365,16 @@ class AlignmentPipeline:
         self.mode.step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
         if self.motion is not None and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + self.config.disturbance.check_interval_s
-            self._check_motion(t_end, elapsed_s, q_b_b0, alpha)
+            self._check_motion(t_end, elapsed_s, alpha)
 
-    def _check_motion(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, alpha: np.ndarray) -> None:
+    def _check_motion(self, t_end: float, elapsed_s: float, alpha: np.ndarray) -> None:
         """Watch for a base that translates (:class:`MotionMonitor`) under the coarse estimate, which runs through
         every stage: while it moves the records are ``disturbed`` with the trusted attitude carried on by the gyros;
         once it is at rest again the alignment restarts if the data contradict it (``action = "restart"``)."""
         if self.coarse.solver.n_obs == 0:
             return
         heading_deg, level_deg = self.coarse.sigma(elapsed_s)
-        found = self.motion.check(elapsed_s, alpha, q_b_b0, dcm_from_quat(self.coarse.q_b_n0), heading_deg * DEG,
+        found = self.motion.check(elapsed_s, alpha, dcm_from_quat(self.coarse.q_b_n0), heading_deg * DEG,
                                   level_deg * DEG)
         if found is None:
             return

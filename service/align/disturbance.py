@@ -28,8 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._kernels import beta_fixed_at, horizontal_gained
 from .conventions import misalignment
-from .observations import ObservationSource
+from .earth import Site
 
 SUSPECT_FRACTION = 0.25
 """A base that gains more than this fraction of the threshold over a window, while the estimate's heading moves
@@ -72,13 +73,13 @@ class MotionCheck:
 class MotionMonitor:
     """Checks, every ``check_interval_s`` of alignment time, whether a base meant to stay in place translates.
 
-    source : the fixed site's observation source (its β and the navigation frame's turn).
+    site : the fixed site (its β and the navigation frame's turn, in closed form).
     threshold_mps : horizontal velocity gained over ``window_s`` that means "moving" (m/s).
     """
 
-    def __init__(self, source: ObservationSource, threshold_mps: float, window_s: float, check_interval_s: float,
+    def __init__(self, site: Site, threshold_mps: float, window_s: float, check_interval_s: float,
                  settle_s: float) -> None:
-        self.source = source
+        self._lat, self._gravity = site.lat, site.gravity
         self.threshold_mps = threshold_mps
         self.settle_s = settle_s
         self._n = max(1, round(window_s / check_interval_s))
@@ -97,17 +98,13 @@ class MotionMonitor:
                 alpha_from: np.ndarray, beta_from: np.ndarray) -> tuple[float, float]:
         """(|horizontal velocity gained| m/s, |horizontal turn of β| m/s) from the ``_from`` instant to now, in the
         navigation frame of now."""
-        C_n0_n = self.source.C_n_n0(elapsed_s).T
-        gained = C_n0_n @ (C_b0_n0 @ (alpha - alpha_from) - (beta - beta_from))
-        turn = C_n0_n @ (beta - beta_from)
-        return float(np.hypot(gained[0], gained[1])), float(np.hypot(turn[0], turn[1]))
+        return horizontal_gained(self._lat, elapsed_s, C_b0_n0, alpha, beta, alpha_from, beta_from)
 
-    def check(self, elapsed_s: float, alpha_b0: np.ndarray, q_b_b0: np.ndarray, C_b0_n0: np.ndarray,
-              heading_sigma_rad: float, level_sigma_rad: float) -> MotionCheck | None:
-        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) and C_b^{b0} (4,) there, the current estimate C_b0^n0 with
-        its 1-sigma errors (rad). None: the base stays still."""
-        _, beta = self.source.vectors(np.array([elapsed_s]), alpha_b0[None], q_b_b0[None])
-        beta = beta[0]
+    def check(self, elapsed_s: float, alpha_b0: np.ndarray, C_b0_n0: np.ndarray, heading_sigma_rad: float,
+              level_sigma_rad: float) -> MotionCheck | None:
+        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 with its 1-sigma errors
+        (rad). None: the base stays still."""
+        beta = beta_fixed_at(self._lat, self._gravity, elapsed_s)
         slot = self._count % (self._n + 1)
         oldest = (self._count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
         self._elapsed[slot], self._alpha[slot], self._beta[slot], self._C[slot] = elapsed_s, alpha_b0, beta, C_b0_n0

@@ -116,9 +116,12 @@ def earth_turn_integrals(dt_s: np.ndarray) -> np.ndarray:
     t = np.asarray(dt_s, dtype=float)
     wt = OMEGA_IE * t
     # t - sin(Ωt)/Ω loses all digits for small Ωt in floating point: use its series there
-    t_minus_sin = np.where(wt > 1e-3, t - np.sin(wt) / OMEGA_IE,
-                           t * wt**2 / 6.0 * (1.0 - wt**2 / 20.0 + wt**4 / 840.0))
-    one_minus_cos = 2.0 * np.sin(0.5 * wt) ** 2 / OMEGA_IE
+    # products, not powers: numpy's pow differs from a product in the last bit, and the compiled kernels
+    # (_kernels.pyx) multiply
+    wt2 = wt * wt
+    t_minus_sin = np.where(wt > 1e-3, t - np.sin(wt) / OMEGA_IE, t * wt2 / 6.0 * (1.0 - wt2 / 20.0 + wt2 * wt2 / 840.0))
+    s_half = np.sin(0.5 * wt)
+    one_minus_cos = 2.0 * (s_half * s_half) / OMEGA_IE
     return np.stack((np.sin(wt) / OMEGA_IE, one_minus_cos, t_minus_sin), axis=-1)
 
 
@@ -133,4 +136,4 @@ def beta_fixed(lat: float, gravity: float, dt_s: np.ndarray) -> np.ndarray:
     cL, sL = np.cos(lat), np.sin(lat)
     integrals = earth_turn_integrals(t)
     one_minus_cos, t_minus_sin = integrals[..., 1], integrals[..., 2]
-    return gravity * np.stack((cL * one_minus_cos, sL * cL * t_minus_sin, t - cL**2 * t_minus_sin), axis=-1)
+    return gravity * np.stack((cL * one_minus_cos, sL * cL * t_minus_sin, t - (cL * cL) * t_minus_sin), axis=-1)

@@ -32,8 +32,8 @@ from itertools import combinations
 
 import numpy as np
 
+from ._kernels import hadamard_feed
 from .conventions import DRH_TO_RRS, UG_TO_MS2
-from .earth import beta_fixed
 from .sensor_model import SMALLEST_FIGURE, SensorGrade
 
 LAGS_S = (1.0, 2.0, 4.0, 8.0, 16.0)
@@ -106,10 +106,9 @@ class NoiseMeter:
     def __init__(self, step_s: float, lat: float, gravity: float) -> None:
         self.step_s = step_s
         self._lat, self._gravity = lat, gravity
-        self._lags = np.array([max(1, round(lag / step_s)) for lag in LAGS_S])
+        self._lags = np.array([max(1, round(lag / step_s)) for lag in LAGS_S], dtype=np.int64)
         self._lag_s = self._lags * step_s
         self._capacity = 4 * int(self._lags.max()) + 1
-        self._offsets = np.arange(5)[None, :] * self._lags[:, None]   # (lags, 5): the stencil's steps back
         self._alpha_sum = np.zeros((self._capacity, 3))   # running sums of α and β, m/s (one term per step)
         self._beta_sum = np.zeros((self._capacity, 3))
         self._last_sums = np.zeros((2, 3))
@@ -121,28 +120,20 @@ class NoiseMeter:
         self.C_n0_b0: np.ndarray | None = None
         """The rough estimate that takes the reference's curvature out (None: left in, at the start)."""
 
-    def feed(self, elapsed_s: float, alpha_b0: np.ndarray) -> None:
-        """α (3,) m/s in b0 axes at an observation, ``elapsed_s`` after the start."""
-        k = self.steps
-        self._last_sums += np.stack((alpha_b0, beta_fixed(self._lat, self._gravity, elapsed_s)))
-        self._alpha_sum[k % self._capacity], self._beta_sum[k % self._capacity] = self._last_sums
-        self.steps += 1
-        ready = k >= 4 * self._lags
-        if not ready[0]:
-            return
-        index = (k - self._offsets) % self._capacity
-        d = STENCIL @ self._alpha_sum[index]   # (lags, 3)
-        if self.C_n0_b0 is not None:
-            d = d - (STENCIL @ self._beta_sum[index]) @ self.C_n0_b0.T
-        d = d / self._lags[:, None]
-        up = alpha_b0 / np.linalg.norm(alpha_b0)
-        squares = 0.5 * (np.einsum("ij,ij->i", d, d) - (d @ up) ** 2)   # per horizontal axis
-        if self._counts[0] >= MIN_OUTLIER_COUNT and squares[0] > OUTLIER_FACTOR * self._sums[0] / self._counts[0]:
-            self.outliers += 1
-            self._bad_until = k + round(SETTLE_S / self.step_s)
-        clean = ready & (k - 4 * self._lags > self._bad_until)
-        self._sums[clean] += squares[clean]
-        self._counts[clean] += 1
+    def feed(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray) -> bool:
+        """α (M, 3) m/s in b0 axes at M observations, ``elapsed_s`` (M,) after the start, in order; whether the step
+        count passed a multiple of :data:`VERDICT_STEPS` (a verdict is due). The per-observation loop is compiled
+        (``_kernels.hadamard_feed``): per observation the rings take the running sums of α and β, and once the
+        shortest lag is ready each lag's stencil D_τ and its horizontal square are formed; a shortest-lag square
+        :data:`OUTLIER_FACTOR` times its running mean marks an event, and the squares of every lag whose stencil
+        reaches into an event's span are left out."""
+        self.steps, self._bad_until, outliers, verdict_due = hadamard_feed(
+            self._lat, self._gravity, np.ascontiguousarray(elapsed_s, dtype=float),
+            np.ascontiguousarray(alpha_b0, dtype=float), self._alpha_sum, self._beta_sum, self._last_sums,
+            self._lags, self._sums, self._counts, self.C_n0_b0, self.steps, self._bad_until,
+            round(SETTLE_S / self.step_s), OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS)
+        self.outliers += outliers
+        return verdict_due
 
     def figures(self) -> NoiseFigures | None:
         """The fit of the lags with :data:`MIN_SPAN_S` of stencils; None before three lags have them."""

@@ -39,8 +39,7 @@ def alpha_of(duration_s: float, rng: np.random.Generator, q: float = 0.0, n: flo
 def metered(t: np.ndarray, alpha: np.ndarray) -> NoiseMeter:
     meter = NoiseMeter(STEP, SITE.lat, SITE.gravity)
     meter.C_n0_b0 = C_N0_B0 @ dcm_from_euler(0.02, 0.0, 0.0)   # a rough estimate is enough
-    for tk, ak in zip(t, alpha, strict=True):
-        meter.feed(tk, ak)
+    meter.feed(t, alpha)
     return meter
 
 

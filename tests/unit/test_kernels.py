@@ -1,0 +1,116 @@
+"""The compiled kernels against the numpy arithmetic they replace (service/align/_kernels.pyx).
+
+GIVEN random sites, times and vectors, WHEN a kernel and the numpy expression it stands for evaluate them, THEN the
+closed forms agree to the bit and the sums of products to a few units of the last place; the noise meter's loop
+gives the same sums, counts and events as the per-observation numpy stencil, and the same bits however a stream is
+split into calls.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from sinsalign.service.align._kernels import C_n_n0_fixed_at, beta_fixed_at, horizontal_gained
+from sinsalign.service.align.conventions import dcm_from_euler
+from sinsalign.service.align.earth import C_n_n0_fixed, Site, beta_fixed
+from sinsalign.service.align.noise_check import (
+    MIN_OUTLIER_COUNT,
+    OUTLIER_FACTOR,
+    SETTLE_S,
+    STENCIL,
+    NoiseMeter,
+)
+
+RNG = np.random.default_rng(27)
+# both branches of t − sin(Ωt)/Ω (its series below Ωt = 1e-3, about 14 s) and a day
+TIMES_S = np.concatenate((RNG.uniform(0.0, 14.0, 400), RNG.uniform(14.0, 86400.0, 400)))
+LATS = RNG.uniform(-1.55, 1.55, len(TIMES_S))
+
+
+def test_the_fixed_site_closed_forms_have_numpys_bits():
+    for t, lat in zip(TIMES_S, LATS, strict=True):
+        assert beta_fixed_at(lat, 9.79, t).tobytes() == beta_fixed(lat, 9.79, t).tobytes()
+        assert C_n_n0_fixed_at(lat, t).tobytes() == C_n_n0_fixed(lat, t).tobytes()
+
+
+def test_the_velocity_gained_is_numpys_to_the_last_bits():
+    for t, lat in zip(TIMES_S[::8], LATS[::8], strict=True):
+        C_b0_n0 = dcm_from_euler(*RNG.uniform(-np.pi, np.pi, 3))
+        alpha, alpha_from, beta_from = RNG.normal(0.0, 100.0, (3, 3))
+        beta = beta_fixed(lat, 9.79, t)
+        C_n0_n = C_n_n0_fixed(lat, t).T
+        gained = C_n0_n @ (C_b0_n0 @ (alpha - alpha_from) - (beta - beta_from))
+        turn = C_n0_n @ (beta - beta_from)
+        expected = (np.hypot(gained[0], gained[1]), np.hypot(turn[0], turn[1]))
+        # the transposed view as the monitor passes it: strided input is read as it is
+        got = horizontal_gained(lat, t, C_b0_n0.T.T, alpha, beta, alpha_from, beta_from)
+        np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(alpha).max())
+
+
+def reference_meter(meter: NoiseMeter, elapsed_s: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The meter's loop written per observation in numpy: (sums, counts, outliers)."""
+    lags = meter._lags
+    capacity = 4 * int(lags.max()) + 1
+    offsets = np.arange(5)[None, :] * lags[:, None]
+    alpha_sum, beta_sum, last = np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((2, 3))
+    sums, counts, outliers, bad_until = np.zeros(len(lags)), np.zeros(len(lags)), 0, -1
+    for k, (t, a) in enumerate(zip(elapsed_s, alpha, strict=True)):
+        last += np.stack((a, beta_fixed(meter._lat, meter._gravity, t)))
+        alpha_sum[k % capacity], beta_sum[k % capacity] = last
+        ready = k >= 4 * lags
+        if not ready[0]:
+            continue
+        index = (k - offsets) % capacity
+        d = STENCIL @ alpha_sum[index]
+        if meter.C_n0_b0 is not None:
+            d = d - (STENCIL @ beta_sum[index]) @ meter.C_n0_b0.T
+        d = d / lags[:, None]
+        up = a / np.linalg.norm(a)
+        squares = 0.5 * (np.einsum("ij,ij->i", d, d) - (d @ up) ** 2)
+        if counts[0] >= MIN_OUTLIER_COUNT and squares[0] > OUTLIER_FACTOR * sums[0] / counts[0]:
+            outliers += 1
+            bad_until = k + round(SETTLE_S / meter.step_s)
+        clean = ready & (k - 4 * lags > bad_until)
+        sums[clean] += squares[clean]
+        counts[clean] += 1
+    return sums, counts, outliers
+
+
+def meter_stream(seconds: float, step_s: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """α of a fixed base with white noise and two knocks (jumps of α, whose stencils the meter must leave out)."""
+    site = Site(0.6)
+    t = np.arange(1, round(seconds / step_s) + 1) * step_s
+    C_n0_b0 = dcm_from_euler(0.01, -0.02, 1.1)
+    alpha = beta_fixed(site.lat, site.gravity, t) @ C_n0_b0.T + np.cumsum(RNG.normal(0.0, 1e-4, (len(t), 3)), axis=0)
+    for at in (0.4, 0.7):
+        alpha[round(at * len(t)):] += (0.05, -0.03, 0.0)
+    return t, alpha
+
+
+@pytest.mark.parametrize("with_estimate", [False, True])
+def test_the_noise_meters_loop_is_the_numpy_stencil(with_estimate):
+    t, alpha = meter_stream(200.0)
+    meter = NoiseMeter(0.1, 0.6, Site(0.6).gravity)
+    if with_estimate:
+        meter.C_n0_b0 = dcm_from_euler(0.01, -0.02, 1.1) @ dcm_from_euler(0.0, 0.0, 0.03)
+    sums, counts, outliers = reference_meter(meter, t, alpha)
+    meter.feed(t, alpha)
+    assert meter.outliers == outliers >= 2   # each knock's stencils stand out
+    assert meter._counts.tolist() == counts.tolist()
+    # each stencil takes differences of running sums some 1e6 times its result: the order of its five terms (numpy's
+    # BLAS against the loop) moves the last 1e-9 of it, as any other order would
+    np.testing.assert_allclose(meter._sums, sums, rtol=1e-7)
+
+
+def test_the_noise_meter_gives_the_same_bits_however_the_stream_is_split():
+    t, alpha = meter_stream(120.0)
+    whole = NoiseMeter(0.1, 0.6, Site(0.6).gravity)
+    assert whole.feed(t, alpha)
+    split = NoiseMeter(0.1, 0.6, Site(0.6).gravity)
+    cuts = np.unique(RNG.integers(0, len(t), 40))
+    due = [split.feed(t[a:b], alpha[a:b]) for a, b in zip((0, *cuts), (*cuts, len(t)), strict=True)]
+    assert split._sums.tobytes() == whole._sums.tobytes() and split._counts.tobytes() == whole._counts.tobytes()
+    assert (split.steps, split.outliers) == (whole.steps, whole.outliers)
+    # a verdict is due in every call that crossed a multiple of ten observations
+    ends = np.array([*cuts, len(t)])
+    starts = np.array([0, *cuts])
+    assert due == [bool(b // 10 > a // 10) for a, b in zip(starts, ends, strict=True)]
