@@ -5,8 +5,7 @@ GIVEN a seed-004 flight (40 s at ×5: coarse stage, then the Kalman filter from 
 as the project's aiding frames on the IMU's line (the native mode), and the same flight with the receiver's epochs
 as NMEA (GGA, RMC, VTG) or UBX NAV-PVT on a port of its own, stamped by their arrival, WHEN the daemon aligns each,
 THEN every receiver epoch is taken (but at most 1 % that the mapping, while it settles, puts at the time of the one
-before) and, from 10 s on, the heading is the native one to within half its σ and the σ
-to within 25 %.
+before) and, from 10 s on, the heading is the native one to within its σ and the σ to within 25 %.
 
 The bound: a format changes what the filter sees by its quantisation and by its time stamps, each a velocity error
 δv against the 0.1 m/s the fixes are weighed at; the heading moves by about δv / 0.1 m/s of its σ. UBX: 1 mm/s,
@@ -14,10 +13,13 @@ The bound: a format changes what the filter sees by its quantisation and by its 
 heights 20 ms apart (0.02 m/s rms) and half an interval late (0.01 s × up to 1.4 m/s², 0.014 m/s). The arrival
 stamps: the least lag leaves a constant bias of about one IMU read (2 ms, × 5 at the bench's speed: 10 ms, or
 0.05 m/s at the flight's 5 m/s² of turn) and [aiding.gnss] latency_s takes back the bench's 0.2 s. Together ≤ 0.1
-m/s, mostly a bias the fit absorbs in part: half a σ. The daemon waits 2 s of data for the epochs (max_wait_s): at
-×5 a loop pass of the daemon is several tenths of a second of data. NMEA's v_U needs heights that are smooth from
-epoch to epoch, as a receiver's are; the simulated receiver's 2-m white noise per 50-Hz epoch would be a 140 m/s
-vertical velocity, so every run here (native, NMEA, UBX) leaves the receiver's position noise out.
+m/s, mostly a bias the fit absorbs in part: half a σ on a quiet machine (0.07–0.2 σ measured). On a loaded 2-core
+machine the least lag of the first seconds, before a fast read has set it, is several reads: 0.75 σ measured at 10 s,
+so the bound is one σ. A latency_s left out (5 m/s² × 0.2 s = 1 m/s) moves the heading by 15 σ. The daemon waits
+2 s of data for the epochs (max_wait_s): at ×5 a loop pass of the daemon is several tenths of a second of data.
+NMEA's v_U needs heights that are smooth from epoch to epoch, as a receiver's are; the simulated receiver's 2-m
+white noise per 50-Hz epoch would be a 140 m/s vertical velocity, so every run here (native, NMEA, UBX) leaves the
+receiver's position noise out.
 """
 from __future__ import annotations
 
@@ -36,9 +38,9 @@ from sinsalign.tools.virtual_imu import AidingPlayback, FramePlayer, PtyPair
 from support.daemon_harness import RunningDaemon, wait_until
 
 SCENARIO, SEED, SECONDS, SPEED, LATE_S, HANDOVER_S = "seed004", 1, 40.0, 5.0, 0.2, 20.0
-HEADING_BOUND_SIGMAS = 0.5
+HEADING_BOUND_SIGMAS = 1.0
 SIGMA_BOUND = 0.25
-"""What a format may change (module docstring): the heading by half its σ, the σ by a quarter."""
+"""What a format may change (module docstring): the heading by its σ, the σ by a quarter."""
 
 
 def flight_run(tmp_path, aid_format: str) -> tuple[list[dict], dict[str, int], int]:
