@@ -27,6 +27,7 @@ from typing import TextIO
 
 import numpy as np
 
+from ._rows import parse_rows
 from .plausibility import HEIGHT_RANGE_M, LATITUDE_RANGE_DEG, LONGITUDE_RANGE_DEG
 
 IMU_COLUMNS = ("t", "dthx", "dthy", "dthz", "dvx", "dvy", "dvz")
@@ -310,6 +311,8 @@ too; the samples after it may begin a new time base (a sensor restarted its cloc
 def _pieces(lines: list[str], first_line: int) -> list[tuple[str | None, list[str], int]]:
     """A chunk's lines cut at :data:`RESTART_MARKER` lines: (the marker's reason before the piece or None, its
     lines, the line number of its first)."""
+    if RESTART_MARKER not in "".join(lines):   # one substring search: most chunks have no marker
+        return [(None, lines, first_line)]
     pieces, start, reason = [], 0, None
     for k, raw in enumerate(lines):
         if raw.startswith(RESTART_MARKER):
@@ -319,10 +322,9 @@ def _pieces(lines: list[str], first_line: int) -> list[tuple[str | None, list[st
     return pieces
 
 
-def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...],
-           limits: RowLimits | None) -> np.ndarray:
-    """The data rows of ``lines`` (line ``first_line`` on) as an (N, len(columns)) float64 block, every value finite
-    and within ``limits`` (if given); LogFormatError naming the first bad cell."""
+def _loadtxt_block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...]) -> np.ndarray:
+    """The data rows of ``lines`` by numpy's reader (what it takes beyond plain decimals: nan, inf, which the check
+    of finite values then refuses); LogFormatError naming the first bad cell."""
     kept = [raw for raw in lines if _is_row(raw)]
     try:
         with np.errstate(all="ignore"):
@@ -332,6 +334,17 @@ def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...
         ok = False
     if not ok:
         raise _diagnose(lines, first_line, path, columns)
+    return block
+
+
+def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...],
+           limits: RowLimits | None) -> np.ndarray:
+    """The data rows of ``lines`` (line ``first_line`` on) as an (N, len(columns)) float64 block, every value finite
+    and within ``limits`` (if given); LogFormatError naming the first bad cell."""
+    text = "".join(lines)
+    block = parse_rows(text.encode(), len(columns)) if text.isascii() else None
+    if block is None:   # beyond the plain rows the compiled pass takes: numpy's reader, then the diagnosis
+        block = _loadtxt_block(lines, first_line, path, columns)
     problem = None if limits is None else limits.problem(block, columns)
     if problem is not None:
         row, column, text = problem
