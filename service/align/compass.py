@@ -42,12 +42,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._compass import compass_step
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
 
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
+_NO_AZIMUTH = (0.0, 0.0, 0.0, 0.0)   # the azimuth gains the compiled step is given while its loop is off (unread)
 
 
 def level_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float]:
@@ -222,24 +224,12 @@ class CompassLoops:
         if azimuth is not None and not state.azimuth_on:
             # the azimuth loop takes the north channel over; its integrator rate is the signal now
             state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
-        K1L, _, K3L = level
-        north = azimuth if state.azimuth_on else level
-        omega_p = state.earth_sign * self.omega_ie_n + self._command(state, level, azimuth)
-        half_turn = rotation_matrix(-0.5 * dt_s * omega_p)
-        dv = half_turn @ (state.C_b0_p @ dalpha_b0)
-        V_E, V_N = state.V
-        w_up = state.earth_sign * self.omega_sin
-        state.V = np.array([V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s,
-                            V_N + dv[1] + (-2.0 * w_up * V_E - north[0] * V_N) * dt_s])
-        state.I_E += K3L * V_E * dt_s
-        if state.azimuth_on:
-            state.y += (-azimuth[2] * state.y + azimuth[3] / (state.earth_sign * self.omega_cos) * V_N) * dt_s
-        else:
-            state.I_N += K3L * V_N * dt_s
-        C = half_turn @ (half_turn @ state.C_b0_p)
-        state.C_b0_p = 1.5 * C - 0.5 * C @ C.T @ C   # re-orthonormalise (first-order, per step)
+        K1A, K2A, K3A, K4A = azimuth if state.azimuth_on else _NO_AZIMUTH
         F = self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, dt_s)
-        state.P = F @ state.P @ F.T + self._process_noise(dt_s)
+        state.I_E, state.I_N, state.y = compass_step(
+            state.C_b0_p, state.V, state.I_E, state.I_N, state.y, dalpha_b0, dt_s, *level, state.azimuth_on,
+            K1A, K2A, K3A, K4A, state.earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin, self.radius_m, F,
+            self._process_noise(dt_s), state.P)
         if advance_schedule:
             state.t_loop_s += dt_s
 

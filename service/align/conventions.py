@@ -25,6 +25,8 @@ import math
 
 import numpy as np
 
+from ._attitude import dcm_from_quat_one
+
 DEG = np.pi / 180.0
 """One degree in rad."""
 DH_TO_RS = DEG / 3600.0
@@ -112,8 +114,11 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 
 def dcm_from_quat(q: np.ndarray) -> np.ndarray:
-    """Direction cosine matrix of a unit quaternion: C = (w² - u·u) I + 2 u uᵀ + 2 w [u×]."""
+    """Direction cosine matrix of a unit quaternion: C = (w² - u·u) I + 2 u uᵀ + 2 w [u×]. One quaternion goes
+    through the compiled formula (service/align/_attitude.pyx, the same bits): the records and checks' case."""
     q = np.asarray(q, dtype=float)
+    if q.shape == (4,):
+        return dcm_from_quat_one(np.ascontiguousarray(q))
     w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     xx, yy, zz, xy, xz, yz, wx, wy, wz = x * x, y * y, z * z, x * y, x * z, y * z, w * x, w * y, w * z
     C = np.empty((*q.shape[:-1], 3, 3))   # filled in place: numpy's per-call cost dominates a few quaternions

@@ -20,7 +20,8 @@ sample would otherwise tilt every pair alike (docs/algorithms/odometer.md, "Cent
 
 Matrix convention: K = [[S - σI, z], [zᵀ, σ]] with the vector part first; its top eigenvector
 q̄ = [q_v, q_4] gives A(q̄) = (q_4² - q_v·q_v) I + 2 q_v q_vᵀ - 2 q_4 [q_v×]. With b in body
-and r in navigation axes A = C_n^b, so the Hamilton quaternion of C_b^n is [q_4, q_v].
+and r in navigation axes A = C_n^b, so the Hamilton quaternion of C_b^n is [q_4, q_v]
+(``quaternion_from_K``, compiled: service/align/_attitude.pyx).
 """
 from __future__ import annotations
 
@@ -29,7 +30,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .conventions import dcm_from_quat, quat_normalize, skew
+from ._attitude import quaternion_from_K
+from .conventions import dcm_from_quat, skew
 
 if TYPE_CHECKING:
     from .sensor_model import SensorGrade
@@ -67,13 +69,6 @@ def request_noise(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> np.ndarray:
     """
     scale = np.asarray(mu, dtype=float) * (3.0 - np.einsum("mi,mi->m", b, b)) * np.einsum("mi,mi->m", r, r)
     return scale[:, None, None] * np.eye(4)
-
-
-def quaternion_from_K(K: np.ndarray) -> np.ndarray:
-    """Hamilton [w, x, y, z] of C_b^n from the top eigenvector of K (see the module docstring)."""
-    _, vectors = np.linalg.eigh(K)
-    top = vectors[:, -1]
-    return quat_normalize(np.array([top[3], top[0], top[1], top[2]]))
 
 
 class RecursiveK:

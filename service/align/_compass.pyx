@@ -1,0 +1,116 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The compass loops' control step compiled (built at install; docs/performance.md).
+
+One call does what :meth:`service.align.compass.CompassLoops.step` describes for one step of Δ seconds: the commanded
+rate from the state at the step's start, the platform turned by half the step either side of the velocity update,
+the level integrators or the azimuth command, the first-order re-orthonormalisation, and the covariance
+P ← F P Fᵀ + Q. Elementwise formulas are numpy's (the same libm sin, cos and pow, no fused multiply-adds: compiled
+with -ffp-contract=off); the 3×3 and 8×8 products add their terms in index order where numpy's BLAS may add them in
+another, so the state agrees with the numpy arithmetic to the last few bits (tests/unit/test_kernels.py). P is made
+exactly symmetric: its upper triangle is computed and mirrored.
+
+Frames and units as in compass.py: C_{b0}^{p} (3, 3), V^p (E, N) m/s, rates rad/s, Δα m/s in b0 axes.
+"""
+from libc.math cimport cos, pow, sin, sqrt
+
+
+cdef void _rotation(double x, double y, double z, double* R) noexcept nogil:
+    """exp([φ×]) row-major into R[9] for φ = (x, y, z): compass.rotation_matrix."""
+    cdef double angle = sqrt(x * x + y * y + z * z)
+    cdef double S[9]
+    cdef double SS[9]
+    cdef double a, b
+    cdef int i, j
+    S[0] = 0.0
+    S[1] = -z
+    S[2] = y
+    S[3] = z
+    S[4] = 0.0
+    S[5] = -x
+    S[6] = -y
+    S[7] = x
+    S[8] = 0.0
+    for i in range(3):
+        for j in range(3):
+            SS[3 * i + j] = S[3 * i] * S[j] + S[3 * i + 1] * S[3 + j] + S[3 * i + 2] * S[6 + j]
+    if angle < 1e-8:
+        a, b = 1.0, 0.5
+    else:
+        a, b = sin(angle) / angle, (1.0 - cos(angle)) / pow(angle, 2.0)
+    for i in range(9):
+        R[i] = (1.0 if i % 4 == 0 else 0.0) + a * S[i] + b * SS[i]
+
+
+cdef inline void _mat3_mul(const double* A, const double* B, double* out) noexcept nogil:
+    cdef int i, j
+    for i in range(3):
+        for j in range(3):
+            out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
+
+
+def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, double y,
+                 const double[::1] dalpha_b0, double dt_s, double K1L, double K2L, double K3L, bint azimuth_on,
+                 double K1A, double K2A, double K3A, double K4A, double earth_sign, const double[::1] omega_ie_n,
+                 double omega_cos, double omega_sin, double radius_m, const double[:, ::1] F,
+                 const double[:, ::1] Q, double[:, ::1] P):
+    """One control step (module docstring): ``C_b0_p``, ``V`` and ``P`` updated in place; returns the new
+    (I_E, I_N, y). The azimuth gains K1A..K4A are read only with ``azimuth_on``."""
+    cdef double V_E = V[0], V_N = V[1], omega_E, w_up, K1N
+    cdef double H[9]
+    cdef double C[9]
+    cdef double HC[9]
+    cdef double CCt[9]
+    cdef double CCtC[9]
+    cdef double Cv[3]
+    cdef double dv[3]
+    cdef double T[64]
+    cdef double s
+    cdef int i, j, k
+    # the commanded rate from the state at the step's start, the platform rate and the half-step turn
+    if azimuth_on:
+        omega_E = -(1.0 + K2A) * V_N / radius_m
+    else:
+        omega_E = -(1.0 + K2L) * V_N / radius_m - I_N
+    _rotation(-0.5 * dt_s * (earth_sign * omega_ie_n[0] + omega_E),
+              -0.5 * dt_s * (earth_sign * omega_ie_n[1] + ((1.0 + K2L) * V_E / radius_m + I_E)),
+              -0.5 * dt_s * (earth_sign * omega_ie_n[2] + y), H)
+    for i in range(3):
+        Cv[i] = C_b0_p[i, 0] * dalpha_b0[0] + C_b0_p[i, 1] * dalpha_b0[1] + C_b0_p[i, 2] * dalpha_b0[2]
+    for i in range(3):
+        dv[i] = H[3 * i] * Cv[0] + H[3 * i + 1] * Cv[1] + H[3 * i + 2] * Cv[2]
+    w_up = earth_sign * omega_sin
+    K1N = K1A if azimuth_on else K1L
+    V[0] = V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s
+    V[1] = V_N + dv[1] + (-2.0 * w_up * V_E - K1N * V_N) * dt_s
+    I_E += K3L * V_E * dt_s
+    if azimuth_on:
+        y += (-K3A * y + K4A / (earth_sign * omega_cos) * V_N) * dt_s
+    else:
+        I_N += K3L * V_N * dt_s
+    # C ← H H C, then re-orthonormalised to first order: 1.5 C − 0.5 C Cᵀ C
+    _mat3_mul(H, &C_b0_p[0, 0], HC)
+    _mat3_mul(H, HC, C)
+    for i in range(3):
+        for j in range(3):
+            CCt[3 * i + j] = C[3 * i] * C[3 * j] + C[3 * i + 1] * C[3 * j + 1] + C[3 * i + 2] * C[3 * j + 2]
+    _mat3_mul(CCt, C, CCtC)
+    for i in range(3):
+        for j in range(3):
+            C_b0_p[i, j] = 1.5 * C[3 * i + j] - 0.5 * CCtC[3 * i + j]
+    # P ← F P Fᵀ + Q, the upper triangle mirrored
+    for i in range(8):
+        for j in range(8):
+            s = 0.0
+            for k in range(8):
+                s = s + F[i, k] * P[k, j]
+            T[8 * i + j] = s
+    for i in range(8):
+        for j in range(i, 8):
+            s = 0.0
+            for k in range(8):
+                s = s + T[8 * i + k] * F[j, k]
+            P[i, j] = s + Q[i, j]
+    for i in range(8):
+        for j in range(i):
+            P[i, j] = P[j, i]
+    return I_E, I_N, y
