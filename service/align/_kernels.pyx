@@ -9,7 +9,9 @@ order, where numpy's BLAS may add them in another: those agree to the last few b
 
 Units are SI: time s, angles rad, α and β m/s; frames as in service/align/earth.py and noise_check.py.
 """
-from libc.math cimport cos, sin, sqrt
+from libc.math cimport cos, fabs, sin, sqrt
+
+include "_linalg.pxi"
 
 import numpy as np
 
@@ -156,3 +158,131 @@ def hadamard_feed(double lat, double gravity, const double[::1] elapsed_s, const
                 sums[j] += square
                 counts[j] += 1
     return steps, bad_until, outliers, verdict_due
+
+
+cdef bint _subset_least_squares(int rows, int k, const double* Aw, const int* cols, const double* mw,
+                                double* x) noexcept nogil:
+    """x (k,) minimising |Aw[:, cols] x − mw| (Aw row-major (rows, 3)) by Householder QR; False where the columns
+    are dependent (a diagonal of R below the rounding of the largest)."""
+    cdef double R[8 * 3]
+    cdef double b[8]
+    cdef double norm, alpha, vnorm2, dot, largest = 0.0
+    cdef int i, j, c
+    for i in range(rows):
+        b[i] = mw[i]
+        for j in range(k):
+            R[k * i + j] = Aw[3 * i + cols[j]]
+    for j in range(k):
+        norm = 0.0
+        for i in range(j, rows):
+            norm += R[k * i + j] * R[k * i + j]
+        norm = sqrt(norm)
+        if norm == 0.0:
+            return False
+        alpha = -norm if R[k * j + j] > 0.0 else norm
+        R[k * j + j] -= alpha   # the reflector v = column j − α e_j, kept in place
+        vnorm2 = 0.0
+        for i in range(j, rows):
+            vnorm2 += R[k * i + j] * R[k * i + j]
+        for c in range(j + 1, k):
+            dot = 0.0
+            for i in range(j, rows):
+                dot += R[k * i + j] * R[k * i + c]
+            for i in range(j, rows):
+                R[k * i + c] -= 2.0 * dot / vnorm2 * R[k * i + j]
+        dot = 0.0
+        for i in range(j, rows):
+            dot += R[k * i + j] * b[i]
+        for i in range(j, rows):
+            b[i] -= 2.0 * dot / vnorm2 * R[k * i + j]
+        R[k * j + j] = alpha
+        largest = max(largest, fabs(alpha))
+    for j in range(k - 1, -1, -1):
+        if fabs(R[k * j + j]) <= 1e-15 * rows * largest:
+            return False
+        dot = b[j]
+        for c in range(j + 1, k):
+            dot -= R[k * j + c] * x[c]
+        x[j] = dot / R[k * j + j]
+    return True
+
+
+cdef inline bint _any_negative(const double* x, int k) noexcept nogil:
+    cdef int j
+    for j in range(k):
+        if x[j] < 0.0:
+            return True
+    return False
+
+
+def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const double[::1] weights):
+    """noise_check._weighted_nonnegative_fit compiled, for 3 unknowns and at most 8 rows: x ≥ 0 minimising
+    Σ w (A x − m)² over the 7 active sets (sizes 1 to 3, each solved by Householder QR), and the standard errors of the
+    unconstrained fit, the diagonal of the pseudo-inverse of the column-scaled normal matrix (eigenvalues below 1e-15
+    of the largest left out, as numpy.linalg.pinv does)."""
+    cdef int rows = A.shape[0], i, j, c, k
+    cdef double Aw[8 * 3]
+    cdef double mw[8]
+    cdef double N[9]
+    cdef double V[9]
+    cdef double scale[3]
+    cdef double x_sub[3]
+    cdef double x[3]
+    cdef double best[3]
+    cdef double best_cost = 0.0, cost, r, root, largest = 0.0, diagonal
+    cdef int subsets[7][3]
+    cdef int sizes[7]
+    sizes[:] = [1, 1, 1, 2, 2, 2, 3]   # itertools.combinations(range(3), size) for size 1, 2, 3
+    subsets[0][:] = [0, 0, 0]
+    subsets[1][:] = [1, 0, 0]
+    subsets[2][:] = [2, 0, 0]
+    subsets[3][:] = [0, 1, 0]
+    subsets[4][:] = [0, 2, 0]
+    subsets[5][:] = [1, 2, 0]
+    subsets[6][:] = [0, 1, 2]
+    if rows > 8 or A.shape[1] != 3:
+        raise ValueError("weighted_nonnegative_fit takes (rows ≤ 8, 3)")
+    for i in range(rows):
+        root = sqrt(weights[i])
+        mw[i] = m[i] * root
+        best_cost += mw[i] * mw[i]
+        for j in range(3):
+            Aw[3 * i + j] = A[i, j] * root
+    for j in range(3):
+        best[j] = 0.0
+        for c in range(3):
+            N[3 * j + c] = 0.0
+            for i in range(rows):
+                N[3 * j + c] += Aw[3 * i + j] * Aw[3 * i + c]
+    for j in range(3):
+        scale[j] = sqrt(N[4 * j])
+    for j in range(3):
+        for c in range(3):
+            N[3 * j + c] = N[3 * j + c] / (scale[j] * scale[c])
+    for k in range(7):
+        if not _subset_least_squares(rows, sizes[k], Aw, subsets[k], mw, x_sub) or _any_negative(x_sub, sizes[k]):
+            continue
+        for j in range(3):
+            x[j] = 0.0
+        for j in range(sizes[k]):
+            x[subsets[k][j]] = x_sub[j]
+        cost = 0.0
+        for i in range(rows):
+            r = Aw[3 * i] * x[0] + Aw[3 * i + 1] * x[1] + Aw[3 * i + 2] * x[2] - mw[i]
+            cost += r * r
+        if cost < best_cost:
+            best_cost = cost
+            best[0], best[1], best[2] = x[0], x[1], x[2]
+    jacobi_eigen(3, N, V)
+    for j in range(3):
+        largest = max(largest, fabs(N[4 * j]))
+    se = np.empty(3)
+    cdef double[::1] s = se
+    for j in range(3):
+        diagonal = 0.0
+        for c in range(3):
+            if fabs(N[4 * c]) > 1e-15 * largest:
+                diagonal += V[3 * j + c] * V[3 * j + c] / N[4 * c]
+        s[j] = sqrt(max(diagonal / (scale[j] * scale[j]), 0.0))
+    return np.array([best[0], best[1], best[2]]), se
+

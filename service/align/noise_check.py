@@ -28,11 +28,10 @@ are left out. Memory is O(1).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from itertools import combinations
 
 import numpy as np
 
-from ._kernels import hadamard_feed
+from ._kernels import hadamard_feed, weighted_nonnegative_fit
 from .conventions import DRH_TO_RRS, UG_TO_MS2
 from .sensor_model import SMALLEST_FIGURE, SensorGrade
 
@@ -52,6 +51,9 @@ VERDICT_STEPS = 10
 """The pipeline asks for a verdict every this many control steps (once a second of 0.1-s steps)."""
 ALARM_FACTOR = 2.0
 """A density surely this many times the datasheet's (its lower bound) is worth telling the operator."""
+MIN_MEAN_SQUARE = 1e-100
+"""(m/s)²: the least a lag's mean square weighs the fit as, so that a lag whose squares are all zero (a constant
+signal) weighs finitely (its square would underflow to an infinite weight)."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -73,28 +75,6 @@ class NoiseVerdict:
 
     grade: SensorGrade
     notice: str | None
-
-
-def _weighted_nonnegative_fit(A: np.ndarray, m: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """x ≥ 0 minimising Σ w (A x − m)² over the active sets (3 unknowns: 7 subsets), and the standard errors of the
-    unconstrained fit."""
-    Aw, mw = A * np.sqrt(weights)[:, None], m * np.sqrt(weights)
-    normal = Aw.T @ Aw
-    scale = np.sqrt(np.diag(normal))
-    covariance = np.linalg.pinv(normal / np.outer(scale, scale)) / np.outer(scale, scale)
-    best, best_cost = np.zeros(A.shape[1]), float(mw @ mw)
-    for size in range(1, A.shape[1] + 1):
-        for subset in combinations(range(A.shape[1]), size):
-            cols = list(subset)
-            x_sub = np.linalg.lstsq(Aw[:, cols], mw, rcond=None)[0]
-            if (x_sub < 0.0).any():
-                continue
-            x = np.zeros(A.shape[1])
-            x[cols] = x_sub
-            cost = float(np.sum((Aw @ x - mw) ** 2))
-            if cost < best_cost:
-                best, best_cost = x, cost
-    return best, np.sqrt(np.maximum(np.diag(covariance), 0.0))
 
 
 class NoiseMeter:
@@ -146,7 +126,8 @@ class NoiseMeter:
         # a mean square of n_eff independent χ² terms has variance 2 m² / n_eff; overlapping stencils of one lag are
         # independent about every other stencil length
         n_eff = np.maximum(counts * self.step_s / (2.0 * lag_s), 1.0)
-        x, se = _weighted_nonnegative_fit(A, m, n_eff / (2.0 * np.maximum(m, 1e-300) ** 2))
+        # x ≥ 0 of the weighted fit over its active sets, compiled (_kernels.weighted_nonnegative_fit)
+        x, se = weighted_nonnegative_fit(A, m, n_eff / (2.0 * np.maximum(m, MIN_MEAN_SQUARE) ** 2))
         return NoiseFigures(*x, *se)
 
     def verdict(self, stated: SensorGrade) -> NoiseVerdict | None:
