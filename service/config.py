@@ -231,8 +231,10 @@ class MasterConfig:
     """A master INS (``--aid master``, transfer alignment): its attitude, velocity and position.
 
     Phase 2 (the Kalman filter) starts at ``handover_s`` if set (the seed's fixed 10 s), else once phase 1's σ is
-    at most ``handover_sigma_deg``, or at most ``linear_sigma_deg`` (the filter's linear range: phase 1 hands its
-    errors over with their correlations) and no longer improving, as with a MEMS slave that never reaches the first.
+    at most ``handover_sigma_deg`` (phase 1 hands its errors over with their correlations), or within the filter's
+    linear range (``linear_sigma_deg``, at most √(2 att_std)) and no longer improving, as with a MEMS slave that
+    never reaches the first: the filter then runs over the data from the first master epoch, about phase 1's
+    mounting.
     """
 
     latency_s: float = _seconds(0.0, 0.0, 10.0, doc="its time stamps are this late")
@@ -249,7 +251,8 @@ class MasterConfig:
                                  "log's vel_std_mps overrides)")
     handover_s: float = _seconds(0.0, 0.0, 3600.0, "s; 0: by σ", "> 0: phase 2 starts at this time")
     handover_sigma_deg: float = _positive(0.2, 30.0, "°", "phase 2 starts once phase 1's noise σ is this small,")
-    linear_sigma_deg: float = _positive(5.0, 30.0, "°", "or within this and no longer improving (a MEMS slave)")
+    linear_sigma_deg: float = _positive(5.0, 30.0, "°", "or within this (at most √(2 att_std), in rad) and no "
+                                     "longer improving (a MEMS slave): the filter then runs from the start")
     lever_sigma_m: float = _number(1.0, Range(0.0, 100.0, why="m; 0: taken as known"), "1-σ of the lever arm the "
                                    "filter estimates")
 

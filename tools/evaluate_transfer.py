@@ -241,7 +241,7 @@ LATE_FROM_S = 40.0
 SETTLED_FROM_S = 76.0
 """After the rolls."""
 HANDOVER_VARIANTS: tuple[tuple[str, dict], ...] = (
-    ("default: phase 1 to 0.2°, or stalled within 5°; lever arm estimated", {}),
+    ("default: phase 1 to 0.2°, or stalled within its linear range (then run from the start); lever arm estimated", {}),
     ("phase 1 until 0.2° only", {"aiding": {"master": {"linear_sigma_deg": 0.2}}}),
     ("lever arm taken as configured (0)", {"aiding": {"master": {"lever_sigma_m": 0.0}}}),
 )

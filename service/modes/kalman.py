@@ -59,19 +59,23 @@ class KalmanMode:
 
     def kalman_step(self, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray, aid: np.ndarray | None,
                     fresh: np.ndarray) -> bool:
-        """Once the filter runs: predict over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body
-        attitude C_b^{b0}) and fold each measurement whose aiding is there and whose kind is ``fresh`` (per kind
-        of ``aids``: an epoch the filter has not had; the same two epochs interpolated again are not a new
-        measurement). False before the filter runs."""
+        """Once the filter runs, :meth:`fold` the control step into it. False before the filter runs."""
         fine = self.p.fine
         if fine is None or not fine.active:
             return False
+        self.fold(fine, dalpha, dt_s, C_b_b0, aid, fresh)
+        return True
+
+    def fold(self, fine: ErrorStateFilter, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray,
+             aid: np.ndarray | None, fresh: np.ndarray) -> None:
+        """Predict ``fine`` over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body attitude
+        C_b^{b0}) and fold each measurement whose aiding is there and whose kind is ``fresh`` (per kind of ``aids``:
+        an epoch the filter has not had; the same two epochs interpolated again are not a new measurement)."""
         fine.predict(dalpha, dt_s, C_b_b0)
         if aid is not None and fresh.any():
             for kind, name, value in self.measurements(aid):
                 if fresh[self._kind_index[kind]] and np.isfinite(value).all():
                     fine.update(name, value)
-        return True
 
     def handover_solution(self, t_end: float, q_b_b0: np.ndarray, notice: tuple[str, str] | None
                           ) -> AttitudeSolution | None:

@@ -11,6 +11,7 @@ is the output; every record carries the mounting with its σ (:meth:`Transfer.mo
 """
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import replace
 from typing import TYPE_CHECKING
 
@@ -22,14 +23,24 @@ from ..align.conventions import DEG, dcm_from_euler, dcm_from_quat, quat_from_dc
 from ..align.kalman import ErrorStateFilter, GnssVelocity, LeverVelocity, MasterAttitude, antenna_lever_velocity
 from ..align.sensor_model import SIGMA_UNKNOWN_DEG
 from ..align.solvers import GroupedWahba
-from ..align.transfer import MASTER_COLUMNS, MasterCoarseAlignment, MasterSource, correlate_handover
+from ..align.transfer import (
+    MASTER_COLUMNS,
+    MasterCoarseAlignment,
+    MasterSource,
+    correlate_handover,
+    linear_range_rad,
+    mounting_prior,
+)
 from .kalman import KalmanMode
 
 if TYPE_CHECKING:
     from ..config import MasterConfig
+    from ..pipeline import AlignmentPipeline
 
 HANDOVER_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n from one master epoch: its σ is this many times the stated noise."""
+BACKLOG_S = 60.0
+"""A stalled phase 1's Kalman stage catches up on at most this much of its time (s)."""
 
 
 def master_velocity(master: MasterConfig, lever_b: np.ndarray | None = None) -> GnssVelocity | LeverVelocity:
@@ -69,38 +80,86 @@ class Transfer(KalmanMode):
         """The master's velocity with the slave's gyro rate, and its attitude quaternion."""
         return [("master", "master_vel", np.r_[aid[4:7], aid[10:13]]), ("master", "master_att", aid[:4])]
 
+    def __init__(self, pipeline: AlignmentPipeline) -> None:
+        super().__init__(pipeline)
+        self._backlog: deque[tuple[np.ndarray, np.ndarray, float, np.ndarray, np.ndarray, float]] = deque()
+
     def step(self, t_end: float, elapsed_s: float, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float,
              aid: np.ndarray | None, fresh: np.ndarray) -> None:
-        """Phase 2's prediction and matching per control step; before it, the switch from phase 1. ``aid``:
-        the master's 10 values at the step's end, then the slave's gyro rate (3, rad/s)."""
+        """Phase 2's prediction and matching per control step; before it, the steps since the first master epoch
+        are kept and the switch from phase 1 is checked. ``aid``: the master's 10 values at the step's end, then the
+        slave's gyro rate (3, rad/s)."""
         p = self.p
         C_b_b0 = dcm_from_quat(q_b_b0)
-        if p.fine is None or self.kalman_step(dalpha, dt_s, C_b_b0, aid, fresh) or not np.isfinite(aid).all():
+        if p.fine is None or aid is None or self.kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):
+            return
+        if self._backlog or np.isfinite(aid).all():
+            self._keep(q_b_b0, dalpha, dt_s, aid, fresh, elapsed_s)
+        if not np.isfinite(aid).all():
             return
         ad = p.config.aiding
         noise = p.coarse.noise_sigma(elapsed_s)
         if noise is None:
             return
         # the switch looks at the fit's noise alone (the bias floor stays until the Kalman stage separates it)
-        due = elapsed_s + 1e-9 >= ad.master.handover_s if ad.master.handover_s > 0.0 else p.coarse.done(
-            max(noise), elapsed_s, ad.master.handover_sigma_deg * DEG, ad.master.linear_sigma_deg * DEG)
-        solution = self.handover_solution(t_end, q_b_b0, None) if due else None
+        if ad.master.handover_s > 0.0:
+            how = "precise" if elapsed_s + 1e-9 >= ad.master.handover_s else None
+        else:
+            how = p.coarse.handover(max(noise), elapsed_s, ad.master.handover_sigma_deg * DEG, self.linear_range_rad())
+        solution = self.handover_solution(t_end, q_b_b0, None) if how else None
         if solution is None:
             return
-        # the filter's models about phase 1's mounting: the attitude matched through it, and the master's point
-        # seen from the slave, in the slave's axes (its velocity is what the master reports)
-        M_ref = p.coarse.mounting
-        lever_b = -M_ref.T @ np.array(ad.master.lever_m)
-        attitude = MasterAttitude(ad.master.att_std_deg * DEG, M_ref=M_ref)
-        heading_rad, level_rad = solution.heading_sigma_deg * DEG, solution.level_sigma_deg * DEG
-        C_b_n = dcm_from_quat(aid[:4]) @ M_ref         # the master's attitude now, through the mounting
-        position = np.r_[np.radians(aid[7:9]), aid[9]]
-        V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], lever_b)
-        p.fine.start(C_b_n, C_b_b0, V_n, position, level_rad, heading_rad,
-                     HANDOVER_SIGMA_FACTOR * ad.master.vel_std_mps, velocity_from_attitude=False,
-                     measurements=[master_velocity(ad.master, lever_b), attitude])
+        if how == "stalled":
+            self._catch_up()
+            return
+        C_b_n = self._start(p.fine, aid, C_b_b0, solution.level_sigma_deg * DEG, solution.heading_sigma_deg * DEG)
         # the φ, μ and ∇ prior: it replaces start's diagonal one
         correlate_handover(p.fine, C_b_n, *noise, p.grade, p.site.gravity)
+        self._backlog.clear()
+
+    def linear_range_rad(self) -> float:
+        """The linear range (rad) of the filter's models: ``aiding.master.linear_sigma_deg`` or the master's
+        noise's (:func:`~..align.transfer.linear_range_rad`), the smaller."""
+        master = self.p.config.aiding.master
+        return min(master.linear_sigma_deg * DEG, linear_range_rad(master.att_std_deg * DEG))
+
+    def _keep(self, q_b_b0: np.ndarray, dalpha: np.ndarray, dt_s: float, aid: np.ndarray, fresh: np.ndarray,
+              elapsed_s: float) -> None:
+        """Keep a step for :meth:`_catch_up`: at most :data:`BACKLOG_S` of them, the oldest with a master epoch."""
+        backlog = self._backlog
+        backlog.append((q_b_b0.copy(), np.array(dalpha, dtype=float), dt_s, aid.copy(), fresh.copy(), elapsed_s))
+        while backlog and (elapsed_s - backlog[0][5] > BACKLOG_S or not np.isfinite(backlog[0][3]).all()):
+            backlog.popleft()
+
+    def _start(self, fine: ErrorStateFilter, aid: np.ndarray, C_b_b0: np.ndarray, level_rad: float,
+               heading_rad: float) -> np.ndarray:
+        """Start ``fine`` at a master epoch (``aid``, body attitude C_b^{b0}) with phase 1's mounting; C_bs^n there."""
+        master = self.p.config.aiding.master
+        # the filter's models about phase 1's mounting: the attitude matched through it, and the master's point
+        # seen from the slave, in the slave's axes (its velocity is what the master reports)
+        M_ref = self.p.coarse.mounting
+        lever_b = -M_ref.T @ np.array(master.lever_m)
+        attitude = MasterAttitude(master.att_std_deg * DEG, M_ref=M_ref)
+        C_b_n = dcm_from_quat(aid[:4]) @ M_ref         # the master's attitude then, through the mounting
+        position = np.r_[np.radians(aid[7:9]), aid[9]]
+        V_n = aid[4:7] - antenna_lever_velocity(C_b_n, aid[10:13], position[0], lever_b)
+        fine.start(C_b_n, C_b_b0, V_n, position, level_rad, heading_rad, HANDOVER_SIGMA_FACTOR * master.vel_std_mps,
+                   velocity_from_attitude=False, measurements=[master_velocity(master, lever_b), attitude])
+        return C_b_n
+
+    def _catch_up(self) -> None:
+        """A stalled phase 1 (a MEMS slave) hands over its mounting only: the filter starts at the oldest kept master
+        epoch, linearised about that mounting with a prior that holds nothing of the data (:func:`mounting_prior`,
+        the linear range), and runs over every step since. Started from phase 1's answer instead, it inherited a fit
+        that weighs the velocity pairs by the slave's whole datasheet bias integrated since the start: driving
+        straight, a MEMS slave's heading at 4-6 times the Cramér-Rao bound of the data."""
+        p = self.p
+        q_b_b0, _, _, aid, _, _ = self._backlog.popleft()
+        sigma_rad = self.linear_range_rad()
+        mounting_prior(p.fine, self._start(p.fine, aid, dcm_from_quat(q_b_b0), sigma_rad, sigma_rad), sigma_rad)
+        for q_b_b0, dalpha, dt_s, aid, fresh, _ in self._backlog:
+            self.fold(p.fine, dalpha, dt_s, dcm_from_quat(q_b_b0), aid, fresh)
+        self._backlog.clear()
 
     def mounting(self, coarse: MasterCoarseAlignment | None = None) -> tuple[np.ndarray, float]:
         """(C_bs^bm (3, 3), its 1-sigma in degrees, the largest axis): phase 2's once it runs, else phase 1's
