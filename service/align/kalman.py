@@ -452,4 +452,9 @@ class MasterAttitude:
         E = dcm_from_quat(value[:4]) @ self.mounting(extra) @ nav.C_b_n.T
         H_core = np.zeros((3, CORE_STATES))
         H_core[:, PHI] = np.eye(3)
-        return rotvec_from_quat(quat_from_dcm(E)), H_core, -nav.C_b_n, np.eye(3) * self.std_rad**2
+        # H_μ at C_bm^n M_ref as the filter estimates it, Ĉ_bs^n exp(−[μ̂×]), not at Ĉ_bs^n: an update's correction
+        # turns φ̂ and μ̂ together, the slave's attitude with it, and a Jacobian that turns while the body does not
+        # reads their shared heading error as observed (driving straight, attitude matching alone took a 30° prior
+        # to 1.5° in a few updates, where it tells nothing)
+        H_mu = -nav.C_b_n @ rotation_matrix(-extra)
+        return rotvec_from_quat(quat_from_dcm(E)), H_core, H_mu, np.eye(3) * self.std_rad**2
