@@ -5,9 +5,10 @@ Phase 1 (``coarse``) is the inertial-frame stage with the master source (service
 attitude pairs r = M b solved in closed form for the mounting M = C_bs^bm, whatever its size. Phase 2 (``fine`` →
 ``aligned``) is the error-state Kalman filter with velocity matching (the master's velocity, with the lever arm as
 states) and attitude matching (the mounting as states), from the first control step at which phase 1's σ is within
-``aiding.master.handover_sigma_deg``, or within ``aiding.master.linear_sigma_deg`` (the filter's linear range) and
-no longer improving (a MEMS slave), or at ``aiding.master.handover_s`` (the seed's fixed 10 s). The slave's attitude
-is the output; every record carries the mounting with its σ (:meth:`Transfer.mounting`).
+``aiding.master.handover_sigma_deg`` (it starts from phase 1's answer), or at ``aiding.master.handover_s`` (the
+seed's fixed 10 s), or within the filter's linear range and no longer improving (a MEMS slave: it starts at the
+first kept master epoch about phase 1's mounting and runs over the steps since, :meth:`Transfer._catch_up`). The
+slave's attitude is the output; every record carries the mounting with its σ (:meth:`Transfer.mounting`).
 """
 from __future__ import annotations
 
@@ -152,7 +153,7 @@ class Transfer(KalmanMode):
         epoch, linearised about that mounting with a prior that holds nothing of the data (:func:`mounting_prior`,
         the linear range), and runs over every step since. Started from phase 1's answer instead, it inherited a fit
         that weighs the velocity pairs by the slave's whole datasheet bias integrated since the start: driving
-        straight, a MEMS slave's heading at 4-6 times the Cramér-Rao bound of the data."""
+        straight, a MEMS slave's heading σ at 4-9 times the Cramér-Rao bound of the data."""
         p = self.p
         q_b_b0, _, _, aid, _, _ = self._backlog.popleft()
         sigma_rad = self.linear_range_rad()
