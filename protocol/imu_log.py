@@ -48,10 +48,11 @@ SHOWN_CHARS = 40
 
 
 class LogFormatError(ValueError):
-    """A malformed log; the message names the file, line and column."""
+    """A malformed log; the message names the file, line (or ``unit`` and its number: a binary log's sample) and
+    column."""
 
-    def __init__(self, path: str, line: int, column: str | None, problem: str) -> None:
-        where = f"{path}:{line}" + (f", column {column!r}" if column else "")
+    def __init__(self, path: str, line: int, column: str | None, problem: str, unit: str = "") -> None:
+        where = f"{path}:{unit}{line}" + (f", column {column!r}" if column else "")
         super().__init__(f"{where}: {problem}")
         self.path, self.line, self.column, self.problem = path, line, column, problem
 
@@ -352,6 +353,12 @@ def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...
     return block
 
 
+def first_not_increasing(times: np.ndarray, t_last: float) -> int | None:
+    """The index of the first time stamp not after the one before it (``t_last`` before the first), or None."""
+    steps = np.diff(times, prepend=t_last)
+    return int(np.flatnonzero(steps <= 0)[0]) if len(times) and not (steps > 0).all() else None
+
+
 def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
                   chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
                   limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
@@ -370,9 +377,8 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
                 t_last = -math.inf
             block = _block(piece, piece_line, path, columns, limits)
             times = block[:, 0]
-            steps = np.diff(times, prepend=t_last)
-            if increasing and len(times) and not (steps > 0).all():
-                bad = int(np.flatnonzero(steps <= 0)[0])
+            bad = first_not_increasing(times, t_last) if increasing else None
+            if bad is not None:
                 raise LogFormatError(path, _line_of(piece, piece_line, bad), "t", f"time does not increase "
                                      f"({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})")
             if len(times):
@@ -384,10 +390,12 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
 
 @dataclass(frozen=True, slots=True)
 class ImuLog:
-    """An IMU log opened for streaming: its header and an iterator of (t, dtheta, dv) blocks."""
+    """An IMU log opened for streaming, CSV or its binary form (``binary``): its header and an iterator of
+    (t, dtheta, dv) blocks."""
 
     path: str
     header: LogHeader
+    binary: bool = False
 
     @property
     def limits(self) -> RowLimits:
@@ -399,14 +407,20 @@ class ImuLog:
         """(t, Δθ, Δv) blocks of at most ``chunk_rows`` samples; with ``limits`` (:attr:`limits` for an alignment)
         a sample outside them stops the reading, named by line and column. Without, any finite value reads back
         exactly as written, the float64 extremes too."""
-        for block in stream_rows(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits):
-            yield block[:, 0], block[:, 1:4], block[:, 4:7]
+        for _, t, dtheta, dv in self.segments(chunk_rows, limits):
+            if len(t):
+                yield t, dtheta, dv
 
     def segments(self, chunk_rows: int = CHUNK_ROWS, limits: RowLimits | None = None
                  ) -> Iterator[tuple[str | None, np.ndarray, np.ndarray, np.ndarray]]:
         """(restart, t, Δθ, Δv) blocks as :meth:`blocks`, ``restart`` the reason of the :data:`RESTART_MARKER` line
         before the block (a daemon's recording: the alignment started over there), else None."""
-        for reason, block in stream_segments(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits):
+        if self.binary:
+            from .imu_binary import read_binary_segments  # here: it builds on this module
+            pieces = read_binary_segments(self.path, chunk_rows, limits)
+        else:
+            pieces = stream_segments(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits)
+        for reason, block in pieces:
             yield reason, block[:, 0], block[:, 1:4], block[:, 4:7]
 
 
@@ -429,8 +443,12 @@ def stream_rows(path: str, columns: tuple[str, ...], required: tuple[str, ...], 
 
 
 def open_imu_log(path: str | Path) -> ImuLog:
-    """Open and check an IMU log's header; raises LogFormatError (or OSError) with the file named."""
+    """Open and check an IMU log's header, CSV or binary (by its first line); raises LogFormatError (or OSError)
+    with the file named."""
+    from .imu_binary import is_binary, read_binary_header  # here: it builds on this module
     path = str(path)
+    if is_binary(path):
+        return ImuLog(path, read_binary_header(path), binary=True)
     with open(path, encoding="utf-8", errors="replace") as stream:
         header, _ = read_header(stream, path)
     return ImuLog(path, header)
@@ -447,3 +465,24 @@ def write_header(stream: TextIO, values: dict[str, object], columns: tuple[str, 
 def write_rows(stream: TextIO, rows: np.ndarray) -> None:
     """Rows with round-trip precision (17 significant digits), so replays are exact; each line ended."""
     np.savetxt(stream, rows, fmt="%.17g", delimiter=",")
+
+
+class CsvLogWriter:
+    """Writes the pinned CSV IMU log to ``stream`` (text): the header of ``values`` now, then rows and restarts."""
+
+    def __init__(self, stream: TextIO, values: Mapping[str, object]) -> None:
+        self._stream = stream
+        write_header(stream, dict(values), IMU_COLUMNS)
+
+    def rows(self, rows: np.ndarray) -> None:
+        write_rows(self._stream, rows)
+
+    def restart(self, reason: str) -> None:
+        """One line, whatever the reason's white space."""
+        self._stream.write(f"{RESTART_MARKER} {' '.join(reason.split())}\n")
+
+    def flush(self) -> None:
+        self._stream.flush()
+
+    def close(self) -> None:
+        self._stream.close()

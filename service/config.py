@@ -381,7 +381,8 @@ class DaemonConfig:
     """The daemon's status and recording."""
 
     status_period_s: float = _seconds(1.0, 0.01, 3600.0, doc="status publication period (wall time)")
-    record_path: str = _text("", doc="record the decoded input as an IMU log (CLI --record)")
+    record_path: str = _text("", doc="record the decoded input as an IMU log (CLI --record; a name ending in .sbin: "
+                             "the binary form)")
     max_bridge_samples: int = _number(5, Range(0, 1000), "longest sequence gap bridged by interpolation; longer "
                                       "restarts")
 

@@ -35,7 +35,7 @@ from .config import Config, ConfigError
 from .health import health
 from .ingest import Ingest, SampleCounters
 from .nmea_outputs import NmeaOutputs
-from .recording import Recording
+from .recording import open_recording
 from .ros_outputs import RosImuOutput
 from .serial_port import SerialPort
 from .zenoh_inputs import ZenohInputs
@@ -78,7 +78,7 @@ class Daemon:
         self._refuse_a_served_unit()   # before anything is opened: the other daemon's recording stays whole
         ros = RosImuOutput(session, self.keys, config.ros2) if config.ros2.enabled else None
         self.nmea = NmeaOutputs(config.nmea) if config.nmea.udp or config.nmea.serial else None
-        self._recording = Recording(config.daemon.record_path, config) if config.daemon.record_path else None
+        self._recording = open_recording(config.daemon.record_path, config) if config.daemon.record_path else None
         self.outputs = ZenohOutputs(session, self.keys, self.state)
         self._record_outputs = [self.outputs, *(output for output in (self.nmea, ros) if output is not None)]
         self.inputs = ZenohInputs(session, self.keys, config.zenoh.imu_input, self.ingest.aid_kinds, self.counters,

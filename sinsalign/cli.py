@@ -116,7 +116,7 @@ def cmd_sim(args: argparse.Namespace) -> int:
         print("\nEach name also runs without sensor errors as NAME-ideal.")
         return 0
     scenario = seed_run(args.scenario, args.seed, args.duration)
-    files = write_simulation(scenario, args.seed, args.out_dir)
+    files = write_simulation(scenario, args.seed, args.out_dir, binary=args.binary)
     aids = "".join(f" and {path}" for path in (files.odo_csv, files.gnss_csv, files.master_csv) if path)
     print(f"wrote {files.imu_csv}, {files.truth_csv}{aids} ({scenario.duration_s:g} s at {scenario.rate_hz:g} Hz)")
     return 0
@@ -138,6 +138,13 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"t = {last.t:g} s: heading {last.heading_deg:.4f}° ± {last.heading_sigma_deg:.4f}°, "
               f"pitch {last.pitch_deg:.4f}°, roll {last.roll_deg:.4f}° (level σ {last.level_sigma_deg:.4f}°), "
               f"phase {last.phase}, converged: {last.converged}", file=sys.stderr)
+    return 0
+
+
+def cmd_convert(args: argparse.Namespace) -> int:
+    from sinsalign.tools.convert import convert
+    samples = convert(args.source, args.target)
+    print(f"{samples} samples: {args.source} → {args.target}", file=sys.stderr)
     return 0
 
 
@@ -323,13 +330,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--duration", type=POSITIVE, metavar="S", help="override the scenario's duration")
     p.add_argument("--out-dir", default="out/sim", help="output folder (default out/sim)")
     p.add_argument("--list", action="store_true", help="list the scenarios")
+    p.add_argument("--binary", action="store_true", help="write the IMU log in its binary form (imu.sbin: "
+                   "docs/reference.md, 'Binary IMU log'), for long runs")
     p.set_defaults(func=cmd_sim)
 
     p = sub.add_parser("replay", help="align a recorded IMU log as fast as possible → JSON Lines",
                        description="Process IMU.csv (pinned log format) and write one JSON object per output epoch "
                        "(t on whole multiples of the output period) with q, Euler angles, heading/level σ, "
                        "phase and converged. A malformed log stops with the file, line and column named.")
-    p.add_argument("imu_csv", metavar="IMU.csv", help="the IMU log (pinned CSV: docs/reference.md, 'IMU log format')")
+    p.add_argument("imu_csv", metavar="IMU.csv", help="the IMU log (pinned CSV, docs/reference.md 'IMU log "
+                   "format', or its binary form, 'Binary IMU log')")
     p.add_argument("--out", required=True, metavar="RESULTS.jsonl",
                    help="the results, one JSON object per output epoch")
     p.add_argument("--period", type=float, metavar="S", help="output period (default 1 s)")
@@ -342,6 +352,15 @@ def build_parser() -> argparse.ArgumentParser:
                    "transfer alignment against a master INS; repeat --aid for each log")
     _add_alignment_options(p)
     p.set_defaults(func=cmd_replay)
+
+    p = sub.add_parser("convert", help="an IMU log from CSV to its binary form (.sbin) or back",
+                       description="Copy an IMU log between the pinned CSV and its binary form (docs/reference.md, "
+                       "'Binary IMU log'): every sample exact, the daemon's restart marks kept. The source's form is "
+                       "told by its first line, the target's by its name (.sbin: binary). The binary form reads "
+                       "many times faster; replay takes either, and so does the daemon's --record.")
+    p.add_argument("source", metavar="IN", help="an IMU log, CSV or binary")
+    p.add_argument("target", metavar="OUT", help="the copy (.sbin: binary, else CSV; owner-only)")
+    p.set_defaults(func=cmd_convert)
 
     p = sub.add_parser("eval", help="Monte Carlo against simulated truth: table, settling, σ honesty, plot",
                        description="Run N seeds of a scenario in memory; print a paper-style table of heading and "
@@ -401,7 +420,8 @@ def build_parser() -> argparse.ArgumentParser:
                    "(THS, ROT, PASHR by default; [nmea] table) as UDP datagrams here (repeatable)")
     p.add_argument("--ros2", action="store_true", help="publish sensor_msgs/msg/Imu (CDR) on "
                    "<prefix>/<unit>/ros/imu for zenoh-bridge-ros2dds (needs the ros2 extra)")
-    p.add_argument("--record", metavar="CSV", help="record the decoded input as an IMU log (owner-only file)")
+    p.add_argument("--record", metavar="LOG", help="record the decoded input as an IMU log (owner-only file; a name "
+                   "ending in .sbin: the binary form)")
     p.add_argument("--period", type=float, metavar="S", help="attitude output period (default 1 s)")
     p.add_argument("--aid", action="append", metavar="KIND",
                    help="take this aiding kind (<prefix>/<unit>/aid/KIND and serial aiding frames; aiding.inputs); "

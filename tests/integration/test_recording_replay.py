@@ -13,6 +13,7 @@ import time
 import numpy as np
 from sinsalign.protocol.imu_log import RESTART_MARKER
 from sinsalign.protocol.serial_frame import DTHETA_LSB_RAD
+from sinsalign.tools.convert import convert
 from sinsalign.tools.replay import replay
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair
 from support.daemon_harness import RunningDaemon, imu_data, wait_until
@@ -44,8 +45,11 @@ def test_the_replay_of_a_recording_equals_the_daemon_across_an_outage_a_saturati
     assert (counters["restarts"], counters["clock_resets"], counters["saturated"]) == (3, 1, 1)
     recording = tmp_path / "recorded.csv"
     assert recording.read_text().count(RESTART_MARKER) == 3
-    out = tmp_path / "replayed.jsonl"
-    replay(recording, out, run.config, progress=False)
-    offline = [json.loads(line) for line in out.read_text().splitlines()]
     live = [{k: v for k, v in m.items() if k not in WIRE_ONLY} for m in run.subscriber.attitude]
-    assert len(live) > 30 and live == offline
+    binary = tmp_path / "recorded.sbin"
+    convert(recording, binary)
+    for log in (recording, binary):       # the CSV and its binary form
+        out = tmp_path / "replayed.jsonl"
+        replay(log, out, run.config, progress=False)
+        offline = [json.loads(line) for line in out.read_text().splitlines()]
+        assert len(live) > 30 and live == offline

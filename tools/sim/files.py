@@ -10,7 +10,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from sinsalign.protocol.imu_log import IMU_COLUMNS, TRUTH_COLUMNS, LogHeader, write_header, write_rows
+from sinsalign.protocol.imu_binary import SUFFIX, BinaryLogWriter
+from sinsalign.protocol.imu_log import TRUTH_COLUMNS, CsvLogWriter, LogHeader, write_header, write_rows
 from sinsalign.service.align.conventions import DEG, DH_TO_RS, UG_TO_MS2, euler_from_dcm, quat_from_dcm
 
 from .aiding import scenario_aids, write_aiding_log
@@ -53,24 +54,31 @@ def simulated_biases(header: LogHeader) -> tuple[np.ndarray, np.ndarray] | None:
     return (gyro, acc) if gyro.shape == (3,) and acc.shape == (3,) else None
 
 
-def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: str = "imu") -> SimulatedFiles:
-    """Simulate ``scenario`` with ``seed`` into OUT_DIR/STEM.csv and OUT_DIR/STEM_truth.csv."""
+def write_simulation(scenario: Scenario, seed: int, out_dir: str | Path, stem: str = "imu",
+                     binary: bool = False) -> SimulatedFiles:
+    """Simulate ``scenario`` with ``seed`` into OUT_DIR/STEM.csv (``binary``: the log's binary form, STEM.sbin)
+    and OUT_DIR/STEM_truth.csv."""
     scenario = scenario.for_seed(seed)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     aids = {aid.kind: aid for aid in scenario_aids(scenario, seed)}
-    files = SimulatedFiles(out / f"{stem}.csv", out / f"{stem}_truth.csv",
+    files = SimulatedFiles(out / f"{stem}{SUFFIX if binary else '.csv'}", out / f"{stem}_truth.csv",
                            *(out / f"{stem}_{kind}.csv" if kind in aids else None
                              for kind in ("odo", "gnss", "master")))
     for kind, aid in aids.items():
         write_aiding_log(getattr(files, f"{kind}_csv"), kind, aid.epochs, aid.log_keys)
-    with open(files.imu_csv, "w", encoding="utf-8") as imu, open(files.truth_csv, "w", encoding="utf-8") as truth:
-        write_header(imu, log_keys(scenario, seed), IMU_COLUMNS)
-        write_header(truth, {"scenario": scenario.name, "seed": seed}, TRUTH_COLUMNS)
-        for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz,
-                              scenario.duration_s, seed):
-            write_rows(imu, np.column_stack((chunk.t, chunk.dtheta, chunk.dv)))
-            heading, pitch, roll = euler_from_dcm(chunk.C_b_n_true)
-            write_rows(truth, np.column_stack((chunk.t, heading / DEG, pitch / DEG, roll / DEG,
-                                               quat_from_dcm(chunk.C_b_n_true))))
+    keys = log_keys(scenario, seed)
+    imu = (BinaryLogWriter(open(files.imu_csv, "wb"), keys) if binary   # noqa: SIM115 (closed below)
+           else CsvLogWriter(open(files.imu_csv, "w", encoding="utf-8"), keys))   # noqa: SIM115
+    try:
+        with open(files.truth_csv, "w", encoding="utf-8") as truth:
+            write_header(truth, {"scenario": scenario.name, "seed": seed}, TRUTH_COLUMNS)
+            for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz,
+                                  scenario.duration_s, seed):
+                imu.rows(np.column_stack((chunk.t, chunk.dtheta, chunk.dv)))
+                heading, pitch, roll = euler_from_dcm(chunk.C_b_n_true)
+                write_rows(truth, np.column_stack((chunk.t, heading / DEG, pitch / DEG, roll / DEG,
+                                                   quat_from_dcm(chunk.C_b_n_true))))
+    finally:
+        imu.close()
     return files
