@@ -528,11 +528,13 @@ def build_parser() -> argparse.ArgumentParser:
 def _check_scenario(args: argparse.Namespace) -> None:
     """A scenario name the simulator does not know is the user's error, said before anything runs (``main`` lets
     a KeyError through: anywhere else it is a bug, and shows as one)."""
+    name = getattr(args, "scenario", None)
+    if not name:
+        return   # before the imports: the simulator's modules are no part of a replay
     from sinsalign.service.config import ConfigError
     from sinsalign.tools.eval_command import AIDED_TABLES
     from sinsalign.tools.sim.scenarios import get_scenario
-    name = getattr(args, "scenario", None)
-    if not name or name in AIDED_TABLES:
+    if name in AIDED_TABLES:
         return
     try:
         get_scenario(name)
