@@ -160,8 +160,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
 
 def cmd_benchmark(args: argparse.Namespace) -> int:
-    from sinsalign.tools.benchmark import print_report
-    print_report(args.seconds, args.repeat, args.live, args.live_seconds, args.stream_hours)
+    from sinsalign.tools.benchmark import report
+    from sinsalign.tools.stamp import stamp
+    print(stamp(args.argv) + "\n\n" + report(args.seconds, args.repeat, args.live, args.live_seconds,
+                                             args.stream_hours, args.long_seconds))
     return 0
 
 
@@ -395,6 +397,7 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Numbers, not pass/fail. --stream-hours 24 streams a day of 200-Hz data "
                        "generated on the fly and reports RSS every simulated hour.")
     p.add_argument("--seconds", type=POSITIVE, default=600.0, help="length of the replayed log (default 600 s)")
+    p.add_argument("--long-seconds", type=POSITIVE, default=3600.0, help="length of the long log (default 3600 s)")
     p.add_argument("--repeat", type=POSITIVE_INT, default=5, help="replays per configuration; best and median are "
                    "reported (a shared machine's speed varies from run to run; default 5)")
     p.add_argument("--stream-hours", type=NON_NEGATIVE, default=0.0, help="hours of streamed data (0 = skip; try 24)")

@@ -1,21 +1,28 @@
 """Benchmarks (numbers, not pass/fail): replay throughput, per-sample latency, memory over a 24 h stream."""
 from __future__ import annotations
 
+import os
 import resource
+import subprocess
+import sys
 import tempfile
 import time
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from statistics import median
 
 import numpy as np
 from rich.progress import Progress
+from sinsalign.protocol.imu_binary import SUFFIX
+from sinsalign.protocol.imu_log import open_imu_log
 from sinsalign.service.aiding import AidingTrack
 from sinsalign.service.align.conventions import DEG
 from sinsalign.service.align.earth import Site
 from sinsalign.service.config import Config, ConfigError, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline, build_pipeline
 
+from .convert import convert
 from .evaluate import COARSE_ONLY
 from .replay import replay
 from .sim.aiding import odometer_epochs
@@ -188,44 +195,92 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
                      float(np.percentile(latency, 99)), float(latency.max()), cpu_share, ingest)
 
 
-def print_report(seconds: float, repeat: int, live: bool, live_seconds: float, stream_hours: float) -> None:
-    """``sinsalign benchmark``: replay throughput (best and median of ``repeat`` replays of ``seconds`` of data, default
-    and coarse-only), the live path's latency fixed-base and velocity-aided, the live daemon's (``live``: its own
-    process behind a pty for ``live_seconds``) and the memory of a ``stream_hours``-long stream (0: skipped)."""
+@dataclass(slots=True)
+class Rows:
+    """The benchmark's table: one row per measure, with the machine's load (1-min average, the highest seen while
+    the measure ran: another process on a 2-core machine shows here)."""
+
+    lines: list[str] = field(default_factory=list)
+
+    def measure(self, label: str, function: Callable[[], tuple[str, str]]) -> None:
+        """Run ``function`` (→ its best and median cells) and add its row."""
+        load = os.getloadavg()[0]
+        best, middle = function()
+        self.lines.append(f"| {label} | {best} | {middle} | {max(load, os.getloadavg()[0]):.2f} |")
+
+    def table(self, title: str) -> str:
+        return "\n".join([title, "", "| measure | best | median | load |", "|---|---|---|---|", *self.lines])
+
+
+def _frames(values: list[float]) -> tuple[str, str]:
+    return f"{max(values):,.0f} frames/s", f"{median(values):,.0f} frames/s"
+
+
+def bench_process_replay(log: Path, repeat: int, options: tuple[str, ...] = ()) -> list[float]:
+    """Frames/s of ``sinsalign replay LOG`` as a user runs it (its own process: start-up, imports, reading, the
+    pipeline, the results), ``repeat`` times."""
+    samples = sum(len(t) for t, _, _ in open_imu_log(log).blocks())
+    rates = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "sinsalign", "replay", str(log), "--out", str(log.with_suffix(".jsonl")),
+                        "--no-progress", *options], check=True, capture_output=True)
+        rates.append(samples / (time.perf_counter() - start))
+    return rates
+
+
+def _logs(seconds: float, tmp: Path) -> tuple[Path, Path]:
+    """The seed-000 swing for ``seconds`` as a CSV log and in its binary form."""
+    scenario = replace(get_scenario("seed000-swing"), duration_s=seconds)
+    csv = write_simulation(scenario, 1, tmp / f"{seconds:g}").imu_csv
+    binary = csv.with_suffix(SUFFIX)
+    convert(csv, binary)
+    return csv, binary
+
+
+def report(seconds: float, repeat: int, live: bool, live_seconds: float, stream_hours: float,
+           long_seconds: float = 3600.0) -> str:
+    """``sinsalign benchmark``'s table: the whole-process replay of a ``seconds``-long and a ``long_seconds``-long
+    200-Hz log (CSV default and coarse only, the binary form), the pipeline alone, the live path's latency
+    fixed-base and velocity-aided, the live daemon's (``live``: its own process behind a pty for ``live_seconds``)
+    and the memory of a ``stream_hours``-long stream (0: skipped); best and median of ``repeat``."""
     if 0.0 < stream_hours < 1.0 / 60.0:
         raise ConfigError(f"--stream-hours {stream_hours:g}: at least one minute of data (1/60 h), or 0 to skip")
-    for label, config in (("default configuration (coarse → compass)", None),
-                          ("coarse stage only", config_from_mapping(COARSE_ONLY))):
-        runs = [bench_replay(duration_s=seconds, config=config) for _ in range(repeat)]
-        replay_fps = [r.frames_per_s for r in runs]
-        pipeline_fps = [r.samples / r.pipeline_seconds for r in runs]
-        print(f"replay (CSV → JSONL) of {runs[0].samples} frames, {label}, best / median of {len(runs)}: "
-              f"{max(replay_fps):,.0f} / {median(replay_fps):,.0f} frames/s; pipeline alone "
-              f"{max(pipeline_fps):,.0f} / {median(pipeline_fps):,.0f} frames/s")
-    lat = bench_latency()
-    print("live path, one sample per call: p50 {p50_us:.0f} µs, p99 {p99_us:.0f} µs, max {max_us:.0f} µs "
-          "(budget at 200 Hz: {budget_200hz_us:.0f} µs)".format(**lat))
-    aided = bench_aided_latency()
-    print("velocity-aided live path at 100 Hz (seed-003 drive, 80 m/s, 180 s: multistage re-runs then the Kalman "
-          "stage): mean {mean_us:.0f} µs = {share:.1f} % of the {period_us:.0f}-µs period, p50 {p50_us:.0f} µs, "
-          "p99 {p99_us:.0f} µs, max {max_us:.0f} µs at t = {max_at_s:g} s".format(share=100 * aided["mean_share"],
-                                                                                  **aided))
-    if live:
-        every = bench_live(live_seconds)
-        print(f"live daemon (own process) ← pty at 200 Hz, attitude for every sample: frame written → attitude "
-              f"received p50 {every.latency_p50_ms:.2f} ms, p99 {every.latency_p99_ms:.2f} ms, max "
-              f"{every.latency_max_ms:.2f} ms ({every.received}/{every.frames} received); daemon CPU "
-              f"{100 * every.cpu_share:.1f} % of a core; flat out it kept up with {every.max_ingest_frames_s:,.0f} "
-              f"frames/s")
-        default = bench_live(live_seconds, flat_out_s=0.5, output_period_s=1.0)
-        print(f"same at the default 1-Hz attitude output: daemon CPU {100 * default.cpu_share:.1f} % of a core")
-    if stream_hours > 0:
-        start = time.perf_counter()
-        samples = bench_stream_memory(stream_hours)
-        elapsed = time.perf_counter() - start
-        first = samples[0][1]
-        for hour, rss in samples:
-            print(f"  stream hour {hour:5.1f}: RSS {rss:7.1f} MiB")
-        print(f"{stream_hours:g} h stream in {elapsed:.0f} s: RSS growth {samples[-1][1] - first:+.2f} MiB "
-              f"after the first hour")
-    return 0
+    rows = Rows()
+    with tempfile.TemporaryDirectory() as tmp, Progress(transient=True) as bar:
+        task = bar.add_task("benchmark", total=None)
+        for length in dict.fromkeys((seconds, long_seconds)):
+            csv, binary = _logs(length, Path(tmp))
+            rows.measure(f"`replay`, {length:g}-s 200-Hz log, whole process, default",
+                         lambda csv=csv: _frames(bench_process_replay(csv, repeat)))
+            rows.measure("the same, `--no-fine`", lambda csv=csv: _frames(bench_process_replay(csv, repeat,
+                                                                                                ("--no-fine",))))
+            rows.measure("the same log in its binary form, default",
+                         lambda binary=binary: _frames(bench_process_replay(binary, repeat)))
+            bar.advance(task)
+        for label, config in (("default", None), ("coarse stage only", config_from_mapping(COARSE_ONLY))):
+            rows.measure(f"pipeline alone, {seconds:g}-s log, {label}", lambda config=config: _frames(
+                [r.samples / r.pipeline_seconds for r in (bench_replay(duration_s=seconds, config=config)
+                                                          for _ in range(repeat))]))
+        lat = bench_latency()
+        rows.measure("live path, one sample per call (seed-001 swing, 200 Hz): p50 / p99 / max",
+                     lambda: ("{p50_us:.0f} / {p99_us:.0f} / {max_us:.0f} µs".format(**lat), "—"))
+        aided = bench_aided_latency()
+        rows.measure("velocity-aided live path at 100 Hz (seed-003, 80 m/s, 180 s): mean / p99 / max",
+                     lambda: ("{mean_us:.0f} / {p99_us:.0f} / {max_us:.0f} µs".format(**aided), "—"))
+        if live:
+            every = bench_live(live_seconds)
+            rows.measure("daemon ← pty at 200 Hz, attitude every sample: frame → attitude p50 / p99 / max",
+                         lambda: (f"{every.latency_p50_ms:.2f} / {every.latency_p99_ms:.2f} / "
+                                  f"{every.latency_max_ms:.2f} ms", f"{every.received}/{every.frames} received"))
+            rows.measure("daemon flat out through the pty, attitude every sample",
+                         lambda: (f"{every.max_ingest_frames_s:,.0f} frames/s", f"CPU {100 * every.cpu_share:.0f} %"
+                                  " of a core at 200 Hz"))
+            default = bench_live(live_seconds, flat_out_s=0.5, output_period_s=1.0)
+            rows.measure("daemon at 200 Hz, the default 1-Hz output: CPU", lambda: (
+                f"{100 * default.cpu_share:.1f} % of a core", "—"))
+        if stream_hours > 0:
+            samples = bench_stream_memory(stream_hours, progress=False)
+            rows.measure(f"pipeline RSS over a {stream_hours:g}-h stream, growth after the first hour",
+                         lambda: (f"{samples[-1][1] - samples[0][1]:+.2f} MiB", f"{samples[-1][1]:.1f} MiB at the end"))
+    return rows.table(f"sinsalign benchmark on {os.cpu_count()} cores ({repeat} repeats; load: the 1-min average)")
