@@ -454,7 +454,7 @@ class MasterAttitude:
         H_core[:, PHI] = np.eye(3)
         # H_μ at C_bm^n M_ref as the filter estimates it, Ĉ_bs^n exp(−[μ̂×]), not at Ĉ_bs^n: an update's correction
         # turns φ̂ and μ̂ together, the slave's attitude with it, and a Jacobian that turns while the body does not
-        # reads their shared heading error as observed (driving straight, attitude matching alone took a 30° prior
-        # to 1.5° in a few updates, where it tells nothing)
+        # reads their shared heading error as observed (driving straight, attitude matching alone would take a 30°
+        # prior to 1.5° in a few updates, where it tells nothing)
         H_mu = -nav.C_b_n @ rotation_matrix(-extra)
         return rotvec_from_quat(quat_from_dcm(E)), H_core, H_mu, np.eye(3) * self.std_rad**2

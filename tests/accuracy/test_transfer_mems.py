@@ -50,7 +50,7 @@ def test_a_mems_slave_hands_over_and_aligns_within_a_tenth_of_a_degree(two_seeds
 def test_after_a_stalled_hand_over_the_heading_sigma_is_the_data_s_limit_while_driving_straight(two_seeds, t_s):
     """The Kalman stage runs over the data from the first master epoch: before the rolls its heading σ (without the
     reported margin) is within 1.5 times the Cramér-Rao bound of the lateral velocity, and the error within 3σ.
-    Started from phase 1's answer, σ was 2.6° at 20 s on seed 1 where the bound is 0.3°."""
+    Started from phase 1's answer instead, the filter's σ is 2.6° at 20 s on seed 1 where the bound is 0.3°."""
     scenario = get_scenario("transfer-mems")
     k = nearest_epoch(two_seeds, t_s)
     for r in two_seeds:
