@@ -49,6 +49,13 @@ class DaemonProcess:
         self.arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = time.monotonic()
         self.count += 1
 
+    def samples_in(self) -> int:
+        """The samples the daemon has decoded from the pty so far (its state query's ``samples_in_serial``)."""
+        for reply in self.session.get(UnitKeys("sinsalign", "bench").state, timeout=2.0):
+            if reply.ok is not None:
+                return int(messages.unpack_map(reply.ok.payload.to_bytes())["status"]["counters"]["samples_in_serial"])
+        raise TimeoutError("the daemon did not answer its state query")
+
     def cpu_seconds(self) -> float:
         with open(f"/proc/{self.process.pid}/stat") as f:
             fields = f.read().rsplit(")", 1)[1].split()
