@@ -107,7 +107,10 @@ def _read_text_header(stream: BinaryIO, path: str, ranges: Mapping[str, Range]) 
             break
     else:
         raise LogFormatError(path, len(lines), None, f"more than {MAX_COMMENT_KEYS} comment keys")
-    header, _ = read_header(io.StringIO("".join(lines[1:])), path, IMU_COLUMNS, REQUIRED_KEYS, ranges)
+    try:
+        header, _ = read_header(io.StringIO("".join(lines[1:])), path, IMU_COLUMNS, REQUIRED_KEYS, ranges)
+    except LogFormatError as exc:   # its lines counted from the one after the format line
+        raise LogFormatError(path, exc.line + 1, exc.column, exc.problem) from None
     return header
 
 
