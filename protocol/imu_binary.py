@@ -170,9 +170,7 @@ def _checked(block: np.ndarray, path: str, sample: int, t_last: float, limits: R
     if problem is not None:
         row, column, text = problem
         raise LogFormatError(path, sample + row + 1, column, text, "sample ")
-    bad = first_not_increasing(block[:, 0], t_last)
-    if bad is not None:
-        before = float(block[bad - 1, 0]) if bad else t_last
-        raise LogFormatError(path, sample + bad + 1, "t", f"time does not increase ({float(block[bad, 0])!r} after "
-                             f"{before!r})", "sample ")
+    found = first_not_increasing(block[:, 0], t_last)
+    if found is not None:
+        raise LogFormatError(path, sample + found[0] + 1, "t", found[1], "sample ")
     return float(block[-1, 0]) if len(block) else t_last

@@ -353,10 +353,14 @@ def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...
     return block
 
 
-def first_not_increasing(times: np.ndarray, t_last: float) -> int | None:
-    """The index of the first time stamp not after the one before it (``t_last`` before the first), or None."""
+def first_not_increasing(times: np.ndarray, t_last: float) -> tuple[int, str] | None:
+    """The index of the first time stamp not after the one before it (``t_last`` before the first) and the problem
+    to report, or None."""
     steps = np.diff(times, prepend=t_last)
-    return int(np.flatnonzero(steps <= 0)[0]) if len(times) and not (steps > 0).all() else None
+    if not len(times) or (steps > 0).all():
+        return None
+    bad = int(np.flatnonzero(steps <= 0)[0])
+    return bad, f"time does not increase ({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})"
 
 
 def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
@@ -377,10 +381,9 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
                 t_last = -math.inf
             block = _block(piece, piece_line, path, columns, limits)
             times = block[:, 0]
-            bad = first_not_increasing(times, t_last) if increasing else None
-            if bad is not None:
-                raise LogFormatError(path, _line_of(piece, piece_line, bad), "t", f"time does not increase "
-                                     f"({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})")
+            found = first_not_increasing(times, t_last) if increasing else None
+            if found is not None:
+                raise LogFormatError(path, _line_of(piece, piece_line, found[0]), "t", found[1])
             if len(times):
                 t_last = float(times[-1])
             if len(times) or reason is not None:

@@ -11,6 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from statistics import median
+from typing import TypeVar
 
 import numpy as np
 from rich.progress import Progress
@@ -24,11 +25,12 @@ from sinsalign.service.pipeline import AlignmentPipeline, build_pipeline
 
 from .convert import convert
 from .evaluate import COARSE_ONLY
-from .replay import replay
 from .sim.aiding import odometer_epochs
 from .sim.files import write_simulation
 from .sim.imu import simulate, true_increments
 from .sim.scenarios import get_scenario
+
+T = TypeVar("T")
 
 
 def rss_mib() -> float:
@@ -38,34 +40,22 @@ def rss_mib() -> float:
     return pages * resource.getpagesize() / 2**20
 
 
-@dataclass(frozen=True, slots=True)
-class ReplayBench:
-    samples: int
-    seconds: float
-    pipeline_seconds: float
-
-    @property
-    def frames_per_s(self) -> float:
-        return self.samples / self.seconds
-
-
-def bench_replay(scenario_name: str = "seed000-swing", duration_s: float = 600.0,
-                 config: Config | None = None) -> ReplayBench:
-    """Time ``sinsalign replay`` (CSV parse + pipeline + JSONL) on a simulated log, and the pipeline alone
-    (``config``: the default configuration if None)."""
+def bench_pipeline(duration_s: float, repeat: int, config: Config | None = None,
+                   scenario_name: str = "seed000-swing") -> list[float]:
+    """Frames/s of the pipeline alone (``config``: the default configuration if None) over ``duration_s`` of a
+    scenario simulated once, ``repeat`` times."""
     config = config or Config()
     scenario = replace(get_scenario(scenario_name), duration_s=duration_s)
-    with tempfile.TemporaryDirectory() as tmp:
-        files = write_simulation(scenario, 1, tmp)
-        start = time.perf_counter()
-        summary = replay(files.imu_csv, Path(tmp) / "out.jsonl", config, progress=False)
-        elapsed = time.perf_counter() - start
     chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, duration_s, 1))
-    pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet())
-    start = time.perf_counter()
-    for c in chunks:
-        pipeline.process(c.t, c.dtheta, c.dv)
-    return ReplayBench(summary.samples, elapsed, time.perf_counter() - start)
+    samples = sum(len(c.t) for c in chunks)
+    rates = []
+    for _ in range(repeat):
+        pipeline = AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet())
+        start = time.perf_counter()
+        for c in chunks:
+            pipeline.process(c.t, c.dtheta, c.dv)
+        rates.append(samples / (time.perf_counter() - start))
+    return rates
 
 
 def bench_latency(n_samples: int = 24000) -> dict[str, float]:
@@ -204,12 +194,18 @@ class Rows:
     the measure ran: another process on a 2-core machine shows here)."""
 
     lines: list[str] = field(default_factory=list)
+    load: float = 0.0
+    """The load of the last measure (for a second row of the same run)."""
 
-    def measure(self, label: str, function: Callable[[], tuple[str, str]]) -> None:
-        """Run ``function`` (→ its best and median cells) and add its row."""
-        load = os.getloadavg()[0]
-        best, middle = function()
-        self.lines.append(f"| {label} | {best} | {middle} | {max(load, os.getloadavg()[0]):.2f} |")
+    def measure(self, run: Callable[[], T]) -> T:
+        """``run()``, its load kept for the rows of its result."""
+        before = os.getloadavg()[0]
+        result = run()
+        self.load = max(before, os.getloadavg()[0])
+        return result
+
+    def row(self, label: str, best: str, middle: str) -> None:
+        self.lines.append(f"| {label} | {best} | {middle} | {self.load:.2f} |")
 
     def table(self, title: str) -> str:
         return "\n".join([title, "", "| measure | best | median | load |", "|---|---|---|---|", *self.lines])
@@ -254,37 +250,36 @@ def report(seconds: float, repeat: int, live: bool, live_seconds: float, stream_
         task = bar.add_task("benchmark", total=None)
         for length in dict.fromkeys((seconds, long_seconds)):
             csv, binary = _logs(length, Path(tmp))
-            rows.measure(f"`replay`, {length:g}-s 200-Hz log, whole process, default",
-                         lambda csv=csv: _frames(bench_process_replay(csv, repeat)))
-            rows.measure("the same, `--no-fine`", lambda csv=csv: _frames(bench_process_replay(csv, repeat,
-                                                                                                ("--no-fine",))))
-            rows.measure("the same log in its binary form, default",
-                         lambda binary=binary: _frames(bench_process_replay(binary, repeat)))
+            rows.row(f"`replay`, {length:g}-s 200-Hz log, whole process, default",
+                     *_frames(rows.measure(lambda csv=csv: bench_process_replay(csv, repeat))))
+            rows.row("the same, `--no-fine`",
+                     *_frames(rows.measure(lambda csv=csv: bench_process_replay(csv, repeat, ("--no-fine",)))))
+            rows.row("the same log in its binary form, default",
+                     *_frames(rows.measure(lambda binary=binary: bench_process_replay(binary, repeat))))
             bar.advance(task)
         for label, config in (("default", None), ("coarse stage only", config_from_mapping(COARSE_ONLY))):
-            rows.measure(f"pipeline alone, {seconds:g}-s log, {label}", lambda config=config: _frames(
-                [r.samples / r.pipeline_seconds for r in (bench_replay(duration_s=seconds, config=config)
-                                                          for _ in range(repeat))]))
-        lat = bench_latency()
-        rows.measure("live path, one sample per call (seed-001 swing, 200 Hz): p50 / p99 / max",
-                     lambda: ("{p50_us:.0f} / {p99_us:.0f} / {max_us:.0f} µs".format(**lat), "—"))
-        aided = bench_aided_latency()
-        rows.measure("velocity-aided live path at 100 Hz (seed-003, 80 m/s, 180 s): mean / p99 / max",
-                     lambda: ("{mean_us:.0f} / {p99_us:.0f} / {max_us:.0f} µs".format(**aided), "—"))
+            rows.row(f"pipeline alone, {seconds:g}-s log, {label}",
+                     *_frames(rows.measure(lambda config=config: bench_pipeline(seconds, repeat, config))))
+        lat = rows.measure(bench_latency)
+        rows.row("live path, one sample per call (seed-001 swing, 200 Hz): p50 / p99 / max",
+                 "{p50_us:.0f} / {p99_us:.0f} / {max_us:.0f} µs".format(**lat), "—")
+        aided = rows.measure(bench_aided_latency)
+        rows.row("velocity-aided live path at 100 Hz (seed-003, 80 m/s, 180 s): mean / p99 / max",
+                 "{mean_us:.0f} / {p99_us:.0f} / {max_us:.0f} µs".format(**aided), "—")
         if live:
-            every = bench_live(live_seconds)
-            rows.measure("daemon ← pty at 200 Hz, attitude every sample: frame → attitude p50 / p99 / max",
-                         lambda: (f"{every.latency_p50_ms:.2f} / {every.latency_p99_ms:.2f} / "
-                                  f"{every.latency_max_ms:.2f} ms", f"{every.received}/{every.frames} received"))
-            rows.measure("daemon flat out through the pty, attitude every sample",
-                         lambda: (f"{every.max_ingest_frames_s:,.0f} frames/s", f"CPU {100 * every.cpu_share:.0f} %"
-                                  " of a core at 200 Hz"))
-            default = bench_live(live_seconds, output_period_s=1.0)
-            rows.measure("daemon flat out through the pty, the default 1-Hz output", lambda: (
-                f"{default.max_ingest_frames_s:,.0f} frames/s", f"CPU {100 * default.cpu_share:.1f} % of a core at "
-                f"200 Hz; RSS {default.rss_mib:.0f} MiB"))
+            every = rows.measure(lambda: bench_live(live_seconds))
+            rows.row("daemon ← pty at 200 Hz, attitude every sample: frame → attitude p50 / p99 / max",
+                     f"{every.latency_p50_ms:.2f} / {every.latency_p99_ms:.2f} / {every.latency_max_ms:.2f} ms",
+                     f"{every.received}/{every.frames} received")
+            rows.row("daemon flat out through the pty, attitude every sample",
+                     f"{every.max_ingest_frames_s:,.0f} frames/s",
+                     f"CPU {100 * every.cpu_share:.0f} % of a core at 200 Hz")
+            default = rows.measure(lambda: bench_live(live_seconds, output_period_s=1.0))
+            rows.row("daemon flat out through the pty, the default 1-Hz output",
+                     f"{default.max_ingest_frames_s:,.0f} frames/s",
+                     f"CPU {100 * default.cpu_share:.1f} % of a core at 200 Hz; RSS {default.rss_mib:.0f} MiB")
         if stream_hours > 0:
-            samples = bench_stream_memory(stream_hours, progress=False)
-            rows.measure(f"pipeline RSS over a {stream_hours:g}-h stream, growth after the first hour",
-                         lambda: (f"{samples[-1][1] - samples[0][1]:+.2f} MiB", f"{samples[-1][1]:.1f} MiB at the end"))
+            samples = rows.measure(lambda: bench_stream_memory(stream_hours, progress=False))
+            rows.row(f"pipeline RSS over a {stream_hours:g}-h stream, growth after the first hour",
+                     f"{samples[-1][1] - samples[0][1]:+.2f} MiB", f"{samples[-1][1]:.1f} MiB at the end")
     return rows.table(f"sinsalign benchmark on {os.cpu_count()} cores ({repeat} repeats; load: the 1-min average)")

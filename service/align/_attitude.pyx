@@ -2,7 +2,7 @@
 """One attitude's conversions compiled (built at install; docs/performance.md): the quaternion of a K matrix's top
 eigenvector and the DCM of one quaternion, each called once per control step or record.
 
-The top eigenvector comes from cyclic Jacobi rotations of the symmetric 4×4 K (_linalg.pxd), run until the
+The top eigenvector comes from cyclic Jacobi rotations of the symmetric 4×4 K (_linalg.pxi), run until the
 off-diagonal is zero in floating point: each rotation is orthogonal to the last bit, so the eigenvector is as
 accurate as LAPACK's (which ``numpy.linalg.eigh`` calls) and differs from it by rounding divided by the gap between
 K's two largest eigenvalues (tests/unit/test_attitude_kernels.py). The DCM is conventions.dcm_from_quat's formula element by element,

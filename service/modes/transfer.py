@@ -94,9 +94,10 @@ class Transfer(KalmanMode):
         C_b_b0 = dcm_from_quat(q_b_b0)
         if p.fine is None or aid is None or self.kalman_step(dalpha, dt_s, C_b_b0, aid, fresh):
             return
-        if self._backlog or np.isfinite(aid).all():
+        epoch = bool(np.isfinite(aid).all())
+        if self._backlog or epoch:
             self._keep(q_b_b0, dalpha, dt_s, aid, fresh, elapsed_s)
-        if not np.isfinite(aid).all():
+        if not epoch:
             return
         ad = p.config.aiding
         noise = p.coarse.noise_sigma(elapsed_s)
