@@ -50,6 +50,17 @@ class SequenceTracker:
         self._last = seq
         return True
 
+    @property
+    def last(self) -> int | None:
+        """The last accepted counter (None before the first)."""
+        return self._last
+
+    def follow(self, seq: int) -> None:
+        """``seq`` accepted as the end of a run of counters each one after the other (what :meth:`accept` does for
+        each of them: no gap, no repeat)."""
+        self._last = seq
+        self._backwards_run = 0
+
     def counters(self, prefix: str = "seq_") -> dict[str, int]:
         return {f"{prefix}gaps": self.gaps, f"{prefix}repeats": self.repeats, f"{prefix}backwards": self.backwards,
                 f"{prefix}resets": self.resets}

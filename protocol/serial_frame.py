@@ -35,12 +35,14 @@ from __future__ import annotations
 
 import math
 import struct
+import sys
 import zlib
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._frames import imu_run
 from .counters import Counters, count
 from .framing import sync_tail
 from .messages import AIDING_FIELDS, AidingSample, MessageError
@@ -57,6 +59,11 @@ IMU_PAYLOAD = struct.Struct("<6iI")
 DTHETA_LSB_RAD = 2.0**-31
 DV_LSB_MPS = 2.0**-24
 INT32_MAX = 2**31 - 1
+IMU_FRAME_BYTES = HEADER.size + IMU_PAYLOAD.size + CRC.size
+IMU_ROW_COLUMNS = 9
+"""A decoded IMU frame's row: t (s), Δθ (3) rad, Δv (3) m/s, the status word, saturated (1.0: a value at full
+scale)."""
+_FAST = sys.byteorder == "little"   # the compiled pass reads the little-endian fields as the host's integers
 MAX_PAYLOAD = 1024
 """Longest payload any message type may declare; a longer length field is a corrupt header."""
 AIDING_KIND_CODES = {"odo": 1, "gnss": 2, "master": 3}
@@ -236,11 +243,42 @@ class FrameDecoder:
     _buffer: bytearray = field(default_factory=bytearray)
 
     def feed(self, data: bytes) -> list[Frame]:
+        """The frames ``data`` completes, every type, in stream order."""
+        return self._scan(data, fast=False)   # type: ignore[return-value]   # only frames without the fast path
+
+    def feed_rows(self, data: bytes) -> tuple[np.ndarray, list[Frame]]:
+        """What ``data`` completes: the IMU samples as rows (N, 9: t s, Δθ (3) rad, Δv (3) m/s, status word,
+        saturated 1.0/0.0, as :func:`decode_imu` gives them) in stream order, and the frames of the other types.
+
+        The same frames and counters as :meth:`feed`; runs of plain IMU frames are decoded by the compiled pass
+        (protocol/_frames.pyx), the rest as :meth:`feed` decodes it."""
+        runs: list[np.ndarray] = []
+        others: list[Frame] = []
+        for item in self._scan(data, fast=_FAST):
+            if isinstance(item, np.ndarray):
+                runs.append(item)
+            elif item.msg_type == MSG_IMU:
+                m = decode_imu(item)
+                runs.append(np.array([[m.t, *m.dtheta, *m.dv, m.status, float(m.saturated)]]))
+            else:
+                others.append(item)
+        rows = runs[0] if len(runs) == 1 else np.concatenate(runs) if runs else np.empty((0, IMU_ROW_COLUMNS))
+        return rows, others
+
+    def _scan(self, data: bytes, fast: bool) -> list[Frame | np.ndarray]:
+        """Frames in stream order; with ``fast``, each run of plain in-sequence IMU frames as one array of rows."""
         self._buffer += data
-        frames: list[Frame] = []
+        out: list[Frame | np.ndarray] = []
         buf = self._buffer
         pos = 0
         while True:
+            if fast and self.sequence.last is not None:
+                rows = np.empty(((len(buf) - pos) // IMU_FRAME_BYTES, IMU_ROW_COLUMNS))
+                n, pos, last = imu_run(buf, pos, self.sequence.last, rows)
+                if n:
+                    self.sequence.follow(last)
+                    self.counters.frames += n
+                    out.append(rows[:n])
             start = buf.find(SYNC, pos)
             if start < 0:
                 keep = sync_tail(buf, pos, SYNC)
@@ -285,9 +323,9 @@ class FrameDecoder:
                 self.counters.unknown_type += 1
             if accepted:
                 self.counters.frames += 1
-                frames.append(frame)
+                out.append(frame)
         del buf[:pos]
-        return frames
+        return out
 
     def all_counters(self) -> dict[str, int]:
         """Decoder and sequence counters in one map (the status topic's names)."""

@@ -26,8 +26,9 @@ import numpy as np
 
 from ..protocol.counters import Counters, count
 from ..protocol.imu_log import MAX_TIME_S
+from ..protocol.serial_frame import IMU_ROW_COLUMNS
 
-SAMPLE_COLUMNS = 9
+SAMPLE_COLUMNS = IMU_ROW_COLUMNS
 """The one row a decoded IMU sample travels in from every decoder to the pipeline: t (s), Δθ (3) rad, Δv (3) m/s,
 the status word, saturated (1.0: a value at full scale). A u32 status word is exact in a float64."""
 
@@ -76,10 +77,13 @@ class SampleGate:
 
     def admit(self, samples: np.ndarray) -> list[Segment]:
         """Decoded samples (N, :data:`SAMPLE_COLUMNS`) in arrival order → segments to align; a segment carries the
-        restart of every cut since the previous segment, whichever call made it."""
+        restart of every cut since the previous segment, whichever call made it.
+
+        Runs of plain samples (plausible, not saturated, each one sample period after the one before) are admitted
+        as whole arrays; each other sample goes through the rules one at a time, with the same result."""
         dt = 1.0 / self.rate_hz
         segments: list[Segment] = []
-        rows: list[np.ndarray] = []
+        rows: list[np.ndarray] = []   # pieces (K, 7) of the current segment
         if len(samples) == 0:
             return segments
         block = samples[:, :7]
@@ -89,14 +93,26 @@ class SampleGate:
         # scale: a restart, below)
         clockless = ~(np.abs(block[:, 0]) <= MAX_TIME_S)
         out_of_range = ((dtheta_max > self.max_dtheta_rad) | (dv_max > self.max_dv_mps)) & (flags[:, 1] == 0)
-        for k, row in enumerate(block):
+        breaks = np.flatnonzero(~self._plain(block[:, 0], clockless | out_of_range | (flags[:, 1] != 0)))
+        last_here = -1   # the index of the last row this call admitted (-1: none yet)
+        k = 0
+        while k < len(block):
+            if (k == 0 or last_here == k - 1) and not self._behind:
+                end = int(breaks[np.searchsorted(breaks, k)]) if len(breaks) and breaks[-1] >= k else len(block)
+                if end > k:   # plain rows, each after the one before it, which is the last admitted
+                    self.counters.status_flagged += int(np.count_nonzero(flags[k:end, 0]))
+                    rows.append(block[k:end])
+                    self._last, last_here, k = block[end - 1], end - 1, end
+                    continue
+            row = block[k]
             t, (status, saturated) = float(row[0]), flags[k]
-            if clockless[k] or out_of_range[k]:
+            k += 1
+            if clockless[k - 1] or out_of_range[k - 1]:
                 self.counters.implausible += 1
                 self.last_error = (f"sample at t = {t:.6g} s: no IMU clock reads that (|t| > {MAX_TIME_S:g} s): "
-                                   "dropped" if clockless[k] else
-                                   f"sample at t = {t:.6f} s beyond the IMU's range (|Δθ| {dtheta_max[k]:.3g} rad, "
-                                   f"|Δv| {dv_max[k]:.3g} m/s): dropped")
+                                   "dropped" if clockless[k - 1] else
+                                   f"sample at t = {t:.6f} s beyond the IMU's range (|Δθ| {dtheta_max[k - 1]:.3g} "
+                                   f"rad, |Δv| {dv_max[k - 1]:.3g} m/s): dropped")
                 continue
             if self._last is not None and not t > self._last[0]:
                 if not self._hold_behind(row):
@@ -114,14 +130,25 @@ class SampleGate:
             if self._last is not None:
                 missing = round((t - self._last[0]) / dt) - 1
                 if 0 < missing <= self.max_bridge_samples:
-                    rows.extend(self._bridge(self._last, row, missing))
+                    rows.append(self._bridge(self._last, row, missing))
                 elif missing > self.max_bridge_samples:
                     self._cut(segments, rows, f"gap of {missing} samples before t = {t:.6f} s")
                     rows = []
-            rows.append(row)
-            self._last = row
+            rows.append(row[None])
+            self._last, last_here = row, k - 1
         self._close(segments, rows)
         return segments
+
+    def _plain(self, t: np.ndarray, refused: np.ndarray) -> np.ndarray:
+        """Whether each sample, if the one before it (``_last`` for the first) is the last admitted, is admitted as
+        it is: not ``refused`` (implausible, saturated), after that one, and not after a gap."""
+        previous = np.concatenate(([-np.inf if self._last is None else self._last[0]], t[:-1]))
+        with np.errstate(invalid="ignore", over="ignore"):   # a time beyond any clock: refused already
+            missing = np.round((t - previous) / (1.0 / self.rate_hz)) - 1.0
+        plain = ~refused & (t > previous) & ~(missing > 0.0)
+        if self._last is None:
+            plain[0] = not refused[0]
+        return plain
 
     def _hold_behind(self, row: np.ndarray) -> bool:
         """Hold a sample that does not follow the last admitted one; True once the held ones show a clock that went
@@ -144,14 +171,16 @@ class SampleGate:
         self.counters.clock_resets += 1
         self._cut(segments, rows, f"the IMU's time went back from t = {self._last[0]:.6f} s to "
                                   f"t = {self._behind[0][0]:.6f} s")
-        rows, self._behind = self._behind, []
-        self._last = rows[-1]
+        rows, self._behind = [np.array(self._behind)], []
+        self._last = rows[0][-1]
         return rows
 
     def _close(self, segments: list[Segment], rows: list[np.ndarray]) -> None:
-        """The rows since the last cut as a segment, which takes the pending restart (none without rows)."""
+        """The rows since the last cut (pieces (K, 7)) as a segment, which takes the pending restart (none without
+        rows)."""
         if rows:
-            segments.append(Segment(np.array(rows), self._restart_reason is not None, self._restart_reason))
+            segments.append(Segment(rows[0] if len(rows) == 1 else np.concatenate(rows),
+                                    self._restart_reason is not None, self._restart_reason))
             self._restart_reason = None
 
     def _cut(self, segments: list[Segment], rows: list[np.ndarray], why: str) -> None:
@@ -160,9 +189,9 @@ class SampleGate:
         self.counters.restarts += 1
         self.last_error = self._restart_reason = f"{why}: alignment restarted"
 
-    def _bridge(self, before: np.ndarray, after: np.ndarray, missing: int) -> list[np.ndarray]:
+    def _bridge(self, before: np.ndarray, after: np.ndarray, missing: int) -> np.ndarray:
+        """The ``missing`` rows (missing, 7) between two samples, linearly interpolated."""
         self.counters.gaps_bridged += 1
         self.counters.samples_bridged += missing
         fractions = np.arange(1, missing + 1) / (missing + 1)
-        bridged = before + fractions[:, None] * (after - before)
-        return list(bridged)
+        return before + fractions[:, None] * (after - before)

@@ -21,12 +21,12 @@ from ..protocol.axes import axis_map
 from ..protocol.counter_clock import CounterClock
 from ..protocol.declared_frame import DeclaredFrameDecoder
 from ..protocol.kvh import KvhDecoder
-from ..protocol.serial_frame import MSG_AIDING, MSG_IMU, FrameDecoder, decode_aiding, decode_imu
+from ..protocol.serial_frame import MSG_AIDING, FrameDecoder, decode_aiding
 from ..protocol.stim300 import Stim300Decoder
 from ..protocol.vendor import VendorDecoder
 from ..protocol.xsens import XsensDecoder
 from .config import Config
-from .sample_gate import SAMPLE_COLUMNS, sample_rows
+from .sample_gate import SAMPLE_COLUMNS
 
 
 @dataclass(slots=True)
@@ -57,17 +57,14 @@ class SinsalignFrames:
         self.decoder = FrameDecoder()
 
     def feed(self, data: bytes) -> Decoded:
-        samples, out = [], Decoded(np.empty(0))
-        for frame in self.decoder.feed(data):
-            if frame.msg_type == MSG_IMU:
-                m = decode_imu(frame)
-                samples.append((m.t, m.dtheta, m.dv, m.status, m.saturated))
-            elif frame.msg_type == MSG_AIDING:
+        samples, frames = self.decoder.feed_rows(data)
+        out = Decoded(samples)
+        for frame in frames:
+            if frame.msg_type == MSG_AIDING:
                 try:
                     out.aiding.append(decode_aiding(frame))
                 except messages.MessageError as exc:
                     out.refused.append(f"serial aiding frame dropped: {exc}")
-        out.samples = sample_rows(samples)
         return out
 
     def counters(self) -> dict[str, int]:

@@ -37,10 +37,11 @@ from dataclasses import dataclass
 
 import serial
 
-from ..protocol.serial_frame import CRC, HEADER, IMU_PAYLOAD
+from ..protocol.serial_frame import IMU_FRAME_BYTES
 
-FRAME_BYTES = HEADER.size + IMU_PAYLOAD.size + CRC.size
 READ_TIMEOUT_S = 0.02
+MAX_READ_BYTES = 1 << 16
+"""What one :meth:`SerialPort.read` gathers at most from a port that keeps having data (about 1400 IMU frames)."""
 log = logging.getLogger("sinsalign.serial")
 
 
@@ -132,7 +133,12 @@ class SerialPort:
 
     def read(self, wait: bool = True) -> bytes:
         """Whatever arrived (waits up to 20 ms for a frame's worth; without ``wait``, what is there: a second port
-        read in the same loop must not hold it); b'' while the port is down."""
+        read in the same loop must not hold it); b'' while the port is down.
+
+        A line that keeps delivering is read on while it has bytes waiting, up to :data:`MAX_READ_BYTES`: a pty or
+        tty hands at most its 4-KiB line buffer per read (about 80 frames), and an IMU that runs ahead of the loop
+        is then caught up in one pass, with one decoder and one pipeline call, not one per 4 KiB. A frame arriving
+        alone (200 Hz, a loop that keeps up) finds nothing behind it and goes on at once."""
         if self._port is None:
             if time.monotonic() >= self._next_attempt:
                 self._open()
@@ -141,7 +147,10 @@ class SerialPort:
                     time.sleep(READ_TIMEOUT_S)
                 return b""
         try:
-            return self._port.read(max(FRAME_BYTES, self._port.in_waiting) if wait else self._port.in_waiting)
+            data = self._port.read(max(IMU_FRAME_BYTES, self._port.in_waiting) if wait else self._port.in_waiting)
+            while len(data) < MAX_READ_BYTES and (waiting := self._port.in_waiting):
+                data += self._port.read(min(waiting, MAX_READ_BYTES - len(data)))
+            return data
         except (serial.SerialException, OSError) as exc:
             self.disconnects += 1
             self.last_error = f"serial {self.path} lost: {exc}"

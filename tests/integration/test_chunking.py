@@ -14,6 +14,7 @@ import itertools
 from collections.abc import Iterable, Iterator
 from dataclasses import replace
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -84,8 +85,8 @@ def alignment_runs(segments: Iterable[Segment]) -> list[tuple[str | None, list[l
     return runs
 
 
-def admitted_in_calls(calls: list[list[tuple]]) -> tuple[list, dict[str, int], str | None]:
-    gate = SampleGate(GATE_RATE_HZ, max_bridge_samples=5)
+def admitted_in_calls(calls: list[list[tuple]], **ranges: float) -> tuple[list, dict[str, int], str | None]:
+    gate = SampleGate(GATE_RATE_HZ, max_bridge_samples=5, **ranges)
     segments = [segment for call in calls for segment in gate.admit(sample_rows(call))]
     return alignment_runs(segments), gate.counters.as_dict(), gate.last_error
 
@@ -102,6 +103,56 @@ def test_two_saturated_samples_in_a_row_are_two_cuts_and_one_restart_of_the_alig
     runs, counters, _ = admitted_in_calls([[s] for s in GATE_STREAMS["two saturated samples in a row"]])
     assert [reason for reason, _ in runs] == [None, "saturated sample at t = 0.015000 s: alignment restarted"]
     assert (counters["saturated"], counters["restarts"]) == (2, 2)
+
+
+GATE_EVENTS = ("plain", "plain", "plain", "plain", "gap", "long gap", "repeat", "back", "clock back", "saturated",
+               "flagged", "implausible", "jitter")
+
+
+def hostile_samples(events: list[str]) -> list[tuple]:
+    """A 200-Hz stream with each event where the list says (one sample, or the samples the event makes)."""
+    out, k = [], 1
+    for event in events:
+        if event == "gap":
+            k += 3
+        elif event == "long gap":
+            k += 40
+        elif event == "repeat" and out:
+            out.append(out[-1])
+        elif event == "back" and out:
+            out.append(sample(k - 3))
+        elif event == "clock back":
+            k = max(1, k - 200)
+        if event == "saturated":
+            out.append(sample(k, saturated=True))
+        elif event == "flagged":
+            out.append((*sample(k)[:3], 4, False))
+        elif event == "implausible":
+            out.append((1e308 if k % 2 else k / GATE_RATE_HZ, (1e308, 0.0, 0.0), (0.0, 0.0, 0.0), 0, False))
+        elif event == "jitter":
+            out.append(sample(k, t=(k + 0.4) / GATE_RATE_HZ))
+        else:
+            out.append(sample(k))
+        k += 1
+    return out
+
+
+@settings(max_examples=150, deadline=None)
+@given(st.lists(st.sampled_from(GATE_EVENTS), min_size=1, max_size=80), st.integers(1, 50))
+def test_the_gate_s_whole_runs_admit_what_the_sample_by_sample_rules_do(events, split):
+    """Runs of plain samples go in as whole arrays: the same segments, rows (to the bit), counters and last error as
+    the rules applied one sample at a time (the run detection switched off), in calls of any size."""
+    samples = hostile_samples(events)
+    calls = [samples[k:k + split] for k in range(0, len(samples), split)]
+    ranges = {"max_dtheta_rad": 1.0, "max_dv_mps": 100.0}
+    whole_runs = admitted_in_calls(calls, **ranges)
+    original = SampleGate._plain
+    try:
+        SampleGate._plain = lambda self, t, refused: np.zeros(len(t), bool)
+        one_by_one = admitted_in_calls(calls, **ranges)
+    finally:
+        SampleGate._plain = original
+    assert whole_runs == one_by_one
 
 
 # ---- the daemon's ingest, on a serial stream ------------------------------------------------------
