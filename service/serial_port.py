@@ -31,6 +31,7 @@ import contextlib
 import errno
 import logging
 import os
+import select
 import stat
 import time
 from dataclasses import dataclass
@@ -41,7 +42,11 @@ from ..protocol.serial_frame import IMU_FRAME_BYTES
 
 READ_TIMEOUT_S = 0.02
 MAX_READ_BYTES = 1 << 16
-"""What one :meth:`SerialPort.read` gathers at most from a port that keeps having data (about 1400 IMU frames)."""
+"""What one :meth:`SerialPort.read` gathers at most from a port that keeps having data (about 1300 IMU frames)."""
+LINE_BUFFER_BYTES = 4095
+"""The most a Linux tty (a pty too) holds ready to read: a read that took this much found the line behind."""
+CATCH_UP_WAIT_S = 0.001
+"""How long a read that found the line behind waits for the kernel to move the next bytes into its buffer."""
 log = logging.getLogger("sinsalign.serial")
 
 
@@ -135,10 +140,11 @@ class SerialPort:
         """Whatever arrived (waits up to 20 ms for a frame's worth; without ``wait``, what is there: a second port
         read in the same loop must not hold it); b'' while the port is down.
 
-        A line that keeps delivering is read on while it has bytes waiting, up to :data:`MAX_READ_BYTES`: a pty or
-        tty hands at most its 4-KiB line buffer per read (about 80 frames), and an IMU that runs ahead of the loop
-        is then caught up in one pass, with one decoder and one pipeline call, not one per 4 KiB. A frame arriving
-        alone (200 Hz, a loop that keeps up) finds nothing behind it and goes on at once."""
+        A line that is behind is read on, up to :data:`MAX_READ_BYTES`: a tty (a pty too) hands at most its 4-KiB
+        line buffer per read (about 80 frames) and refills it from the kernel's queue a moment later, so a read that
+        took a full buffer waits up to :data:`CATCH_UP_WAIT_S` for more. An IMU that ran ahead of the loop is then
+        caught up in one pass, with one decoder and one pipeline call, not one per 4 KiB. A frame arriving alone
+        (200 Hz, a loop that keeps up) finds nothing behind it and goes on at once."""
         if self._port is None:
             if time.monotonic() >= self._next_attempt:
                 self._open()
@@ -147,9 +153,17 @@ class SerialPort:
                     time.sleep(READ_TIMEOUT_S)
                 return b""
         try:
-            data = self._port.read(max(IMU_FRAME_BYTES, self._port.in_waiting) if wait else self._port.in_waiting)
-            while len(data) < MAX_READ_BYTES and (waiting := self._port.in_waiting):
-                data += self._port.read(min(waiting, MAX_READ_BYTES - len(data)))
+            data = chunk = self._port.read(max(IMU_FRAME_BYTES, self._port.in_waiting) if wait
+                                           else self._port.in_waiting)
+            while len(data) < MAX_READ_BYTES:
+                waiting = self._port.in_waiting
+                if not waiting and len(chunk) >= LINE_BUFFER_BYTES and select.select([self._port.fileno()], [], [],
+                                                                                     CATCH_UP_WAIT_S)[0]:
+                    waiting = self._port.in_waiting
+                if not waiting:
+                    break
+                chunk = self._port.read(min(waiting, MAX_READ_BYTES - len(data)))
+                data += chunk
             return data
         except (serial.SerialException, OSError) as exc:
             self.disconnects += 1
