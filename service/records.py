@@ -7,17 +7,15 @@ from dataclasses import replace
 import numpy as np
 
 from ..protocol.results import ResultRecord
+from .align._attitude import record_angles
 from .align.coarse import AttitudeSolution
-from .align.conventions import DEG, dcm_from_quat, euler_from_dcm, quat_from_dcm, with_heading_of
+from .align.conventions import dcm_from_quat, quat_from_dcm, with_heading_of
 
 
 def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, threshold_deg: float) -> ResultRecord:
     """The pinned result of one solution, stamped with its output epoch."""
-    heading, pitch, roll = euler_from_dcm(dcm_from_quat(solution.q_b_n))
-    heading_deg = float(heading / DEG) % 360.0
-    q = tuple(float(c) for c in solution.q_b_n / np.linalg.norm(solution.q_b_n))
-    return ResultRecord(t=t_epoch, phase=phase, q=q, pitch_deg=float(pitch / DEG), roll_deg=float(roll / DEG),
-                        heading_deg=heading_deg if heading_deg < 360.0 else 0.0,
+    q, heading_deg, pitch_deg, roll_deg = record_angles(np.ascontiguousarray(solution.q_b_n, dtype=float))
+    return ResultRecord(t=t_epoch, phase=phase, q=q, pitch_deg=pitch_deg, roll_deg=roll_deg, heading_deg=heading_deg,
                         heading_sigma_deg=solution.heading_sigma_deg, level_sigma_deg=solution.level_sigma_deg,
                         converged=bool(solution.heading_sigma_deg <= threshold_deg), rho=float(solution.rho),
                         trace_P=float(solution.trace_P), n_obs=solution.n_obs)

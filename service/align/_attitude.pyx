@@ -1,6 +1,7 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
 """One attitude's conversions compiled (built at install; docs/performance.md): the quaternion of a K matrix's top
-eigenvector and the DCM of one quaternion, each called once per control step or record.
+eigenvector, the DCM of one quaternion, a record's angles and the output rule's turn of one attitude to another's
+heading, each called once per control step or record.
 
 The top eigenvector comes from cyclic Jacobi rotations of the symmetric 4×4 K (_linalg.pxi), run until the
 off-diagonal is zero in floating point: each rotation is orthogonal to the last bit, so the eigenvector is as
@@ -8,9 +9,13 @@ accurate as LAPACK's (which ``numpy.linalg.eigh`` calls) and differs from it by 
 K's two largest eigenvalues (tests/unit/test_attitude_kernels.py). The DCM is conventions.dcm_from_quat's formula element by element,
 the same bits (compiled with -ffp-contract=off: no fused multiply-adds).
 
+The angles and the turn are the numpy functions' arithmetic in the same order, with the C library's atan2, asin,
+sin and cos where numpy may take its own vectorised ones (and a sum of squares where numpy's norm and matrix
+product may take BLAS's order): they differ from them by a unit or two of the last place (1e-16 rad).
+
 Quaternions are Hamilton [w, x, y, z] with w ≥ 0, as conventions.quat_normalize gives them.
 """
-from libc.math cimport fabs, sqrt
+from libc.math cimport M_PI, asin, atan2, cos, fabs, fmod, sin, sqrt
 
 include "_linalg.pxi"
 
@@ -54,4 +59,121 @@ def dcm_from_quat_one(const double[::1] q):
     C[0, 0], C[0, 1], C[0, 2] = 1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)
     C[1, 0], C[1, 1], C[1, 2] = 2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)
     C[2, 0], C[2, 1], C[2, 2] = 2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)
+    return out
+
+
+cdef double DEG = M_PI / 180.0
+cdef double TWO_PI = 2.0 * M_PI
+
+
+cdef void _dcm(double w, double x, double y, double z, double* C) noexcept nogil:
+    """C (row-major 9) of [w, x, y, z]: the formula of dcm_from_quat_one."""
+    cdef double xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z
+    cdef double wx = w * x, wy = w * y, wz = w * z
+    C[0], C[1], C[2] = 1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)
+    C[3], C[4], C[5] = 2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)
+    C[6], C[7], C[8] = 2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)
+
+
+cdef void _normalize(double* q) noexcept nogil:
+    """q / |q|, w ≥ 0: conventions.quat_normalize."""
+    cdef double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    cdef int i
+    for i in range(4):
+        q[i] = q[i] / norm
+    if q[0] < 0.0:
+        for i in range(4):
+            q[i] = -q[i]
+
+
+cdef void _shepperd(const double* M, double* q) noexcept nogil:
+    """The unit quaternion (w ≥ 0) of the rotation M (row-major 9): conventions.quat_from_dcm, operation for
+    operation."""
+    cdef double d[4]
+    cdef int i, best = 0
+    d[0], d[1] = 1.0 + M[0] + M[4] + M[8], 1.0 + M[0] - M[4] - M[8]
+    d[2], d[3] = 1.0 - M[0] + M[4] - M[8], 1.0 - M[0] - M[4] + M[8]
+    for i in range(1, 4):
+        if d[i] > d[best]:
+            best = i
+    if best == 0:
+        q[0], q[1], q[2], q[3] = d[0], M[7] - M[5], M[2] - M[6], M[3] - M[1]
+    elif best == 1:
+        q[0], q[1], q[2], q[3] = M[7] - M[5], d[1], M[3] + M[1], M[2] + M[6]
+    elif best == 2:
+        q[0], q[1], q[2], q[3] = M[2] - M[6], M[3] + M[1], d[2], M[7] + M[5]
+    else:
+        q[0], q[1], q[2], q[3] = M[3] - M[1], M[2] + M[6], M[7] + M[5], d[3]
+    _normalize(q)
+
+
+cdef void _product(const double* A, const double* B, double* out) noexcept nogil:
+    """A B of row-major 3×3 matrices, each term summed in index order."""
+    cdef int i, j
+    for i in range(3):
+        for j in range(3):
+            out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
+
+
+def chained_quaternion(const double[:, :] C_n_n0, const double[::1] q_b_n0, const double[::1] q_b_b0):
+    """[w, x, y, z] (w ≥ 0) of C_b^n = C_{n0}^{n} C(q_b_n0) C(q_b_b0), with C_{n0}^{n} = ``C_n_n0``ᵀ: the coarse
+    stage's attitude at one instant (coarse.solution_at)."""
+    cdef double T[9]
+    cdef double A[9]
+    cdef double B[9]
+    cdef double P[9]
+    cdef double M[9]
+    cdef int i, j
+    for i in range(3):
+        for j in range(3):
+            T[3 * i + j] = C_n_n0[j, i]
+    _dcm(q_b_n0[0], q_b_n0[1], q_b_n0[2], q_b_n0[3], A)
+    _dcm(q_b_b0[0], q_b_b0[1], q_b_b0[2], q_b_b0[3], B)
+    _product(T, A, P)
+    _product(P, B, M)
+    out = np.empty(4)
+    cdef double[::1] o = out
+    _shepperd(M, &o[0])
+    return out
+
+
+def record_angles(const double[::1] q):
+    """A record's attitude of C_b^n = C(q) (q [w, x, y, z], near unit): (q normalised as a 4-tuple, heading in
+    [0, 360), pitch, roll), degrees; conventions.euler_from_dcm of conventions.dcm_from_quat, as records.py takes it."""
+    cdef double C[9]
+    cdef double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    _dcm(q[0], q[1], q[2], q[3], C)
+    cdef double heading = atan2(C[1], C[4])
+    if heading < 0.0:
+        heading += TWO_PI
+    cdef double heading_deg = fmod(heading / DEG, 360.0)
+    cdef double c21 = 1.0 if C[7] > 1.0 else -1.0 if C[7] < -1.0 else C[7]
+    return ((q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm),
+            heading_deg if heading_deg < 360.0 else 0.0, asin(c21) / DEG, atan2(-C[6], C[8]) / DEG)
+
+
+def with_heading_of_one(const double[:, :] C_level, const double[:, :] C_heading):
+    """C_b^n (3, 3) with the tilt of ``C_level`` and the heading of ``C_heading``: conventions.with_heading_of (the
+    turn about Up by φ_U of C_level C_headingᵀ, through Shepperd's quaternion and its rotation vector)."""
+    cdef double M[9]
+    cdef double q[4]
+    cdef int i, j
+    cdef double s, angle, scale, phi_up, c, sn
+    for i in range(3):
+        for j in range(3):
+            M[3 * i + j] = C_level[i, 0] * C_heading[j, 0] + C_level[i, 1] * C_heading[j, 1] + \
+                C_level[i, 2] * C_heading[j, 2]
+    _shepperd(M, q)
+    _normalize(q)   # again, as rotvec_from_quat does
+    s = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    angle = 2.0 * atan2(s, q[0])
+    scale = angle / s if s > 1e-12 else 2.0
+    phi_up = -(scale * q[3])
+    c, sn = cos(phi_up), sin(phi_up)
+    out = np.empty((3, 3))
+    cdef double[:, ::1] o = out
+    for j in range(3):
+        o[0, j] = c * C_level[0, j] - sn * C_level[1, j]
+        o[1, j] = sn * C_level[0, j] + c * C_level[1, j]
+        o[2, j] = C_level[2, j]
     return out

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .conventions import dcm_from_quat, quat_from_dcm
+from ._attitude import chained_quaternion
 from .observations import ObservationSource
 from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
 from .solvers import CentredWahba, RecursiveK, WhitenedWahba
@@ -183,9 +183,10 @@ class InertialCoarseAlignment:
     def solution_at(self, t: float, q_b_b0: np.ndarray) -> AttitudeSolution:
         """The attitude C_b^n at sample time t whose body attitude is C_{b}^{b0} = ``q_b_b0``."""
         elapsed = 0.0 if self.t0 is None else t - self.t0
-        C_b_n = self.source.C_n_n0(elapsed).T @ dcm_from_quat(self.q_b_n0) @ dcm_from_quat(q_b_b0)
+        q_b_n = chained_quaternion(self.source.C_n_n0(elapsed), np.ascontiguousarray(self.q_b_n0),
+                                   np.ascontiguousarray(q_b_b0))
         heading_sigma, level_sigma = self.sigma(elapsed)
-        return AttitudeSolution(t=t, q_b_n=quat_from_dcm(C_b_n), heading_sigma_deg=heading_sigma,
+        return AttitudeSolution(t=t, q_b_n=q_b_n, heading_sigma_deg=heading_sigma,
                                 level_sigma_deg=level_sigma, rho=self.solver.rho, trace_P=self.solver.trace_P,
                                 n_obs=self.solver.n_obs)
 

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from ._attitude import dcm_from_quat_one
+from ._attitude import dcm_from_quat_one, with_heading_of_one
 
 DEG = np.pi / 180.0
 """One degree in rad."""
@@ -195,11 +195,9 @@ def misalignment(C_b_n_est: np.ndarray, C_b_n_true: np.ndarray) -> np.ndarray:
 
 def with_heading_of(C_b_n_level: np.ndarray, C_b_n_heading: np.ndarray) -> np.ndarray:
     """C_b^n (3, 3) with the level (tilt) of ``C_b_n_level`` and the heading of ``C_b_n_heading``: the first turned
-    about the n-frame Up axis by their heading difference φ_U (a turn about Up leaves the tilt as it is)."""
-    phi_up = misalignment(C_b_n_level, C_b_n_heading)[2]
-    c, s = np.cos(phi_up), np.sin(phi_up)
-    turn_up = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
-    return turn_up @ C_b_n_level
+    about the n-frame Up axis by their heading difference φ_U, the Up component of :func:`misalignment` (a turn about
+    Up leaves the tilt as it is). Compiled (service/align/_attitude.pyx): it runs at every record."""
+    return with_heading_of_one(np.asarray(C_b_n_level, dtype=float), np.asarray(C_b_n_heading, dtype=float))
 
 
 def wrap_pi(angle: np.ndarray) -> np.ndarray:

@@ -12,7 +12,8 @@ from typing import Protocol
 
 import numpy as np
 
-from .earth import C_n_n0_fixed, Site, beta_fixed
+from ._kernels import C_n_n0_fixed_at
+from .earth import Site, beta_fixed
 
 
 class ObservationSource(Protocol):
@@ -43,4 +44,4 @@ class FixedSiteSource:
         return alpha_b0, beta_fixed(self.site.lat, self._gravity, elapsed_s)
 
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:
-        return C_n_n0_fixed(self.site.lat, elapsed_s)
+        return C_n_n0_fixed_at(self.site.lat, float(elapsed_s))   # compiled: the same bits as C_n_n0_fixed

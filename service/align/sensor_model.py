@@ -7,6 +7,8 @@ A :class:`SensorGrade` holds datasheet 1-sigma figures in SI units. From it foll
 """
 from __future__ import annotations
 
+import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,8 +102,31 @@ class AttitudeSigma:
 
 def bias_limit_rad(grade: SensorGrade, lat: float, gravity: float) -> tuple[float, float]:
     """1-sigma (heading, level) misalignment in rad that the datasheet biases leave (the bias limit)."""
+    return _sigma_terms(grade, lat, gravity).bias_rad
+
+
+@dataclass(frozen=True, slots=True)
+class _SigmaTerms:
+    """What σ(T) takes of a grade and site, computed once: the bias limit (rad) and the noise terms' coefficients."""
+
+    bias_rad: tuple[float, float]
+    bias2: tuple[float, float]
+    acc_heading: float     # rad² s³: the accelerometer's white noise in heading, over T³
+    gyro_heading: float    # rad² s: the gyro's angle random walk in heading, over T
+    bounded_heading: float  # rad² s⁵: a bounded disturbance of α in heading, over T⁵
+    acc_level: float       # 4 VRW² (m²/s³), over g² T
+    gravity2: float
+
+
+@functools.lru_cache(maxsize=64)
+def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
     heading = np.hypot(np.tan(lat) * grade.acc_bias_ms2 / gravity, grade.gyro_bias_rad_s / (OMEGA_IE * np.cos(lat)))
-    return float(heading), grade.acc_bias_ms2 / gravity
+    bias = (float(heading), grade.acc_bias_ms2 / gravity)
+    w_cos = OMEGA_IE * np.cos(lat)
+    return _SigmaTerms(bias, (bias[0] ** 2, bias[1] ** 2), 12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2,
+                       1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2,
+                       320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * np.cos(lat)) ** 2,
+                       4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
 
 
 def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:
@@ -112,35 +137,33 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
     white accelerometer noise of density q = VRW² leaves Var(δψ) = 12 q / (g Ω cos L)² / T³ and
     Var(δθ) = 4 q / (g² T), while a gyro random walk gives Var(δψ) = 1.2 N² / (Ω cos L)² / T.
     The gyro bias also tilts the integrated body attitude by ε T on every axis. The noise
-    variances are scaled by the measured efficiency of the recursive estimator.
+    variances are scaled by the measured efficiency of the recursive estimator. What depends on the
+    grade and site alone is computed once per grade (it runs at every record and motion check).
     """
     T = float(elapsed_s)
     if T <= 0.0:
         return AttitudeSigma(SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG)
-    q = grade.acc_vrw_ms_rts**2
-    N2 = grade.gyro_arw_rad_rts**2
-    bias_heading, bias_level = bias_limit_rad(grade, lat, gravity)
+    terms = _sigma_terms(grade, lat, gravity)
     drift2 = (grade.gyro_bias_rad_s * T) ** 2
-    noise_heading2 = sum(heading_noise_variances(grade, lat, gravity, T))
     # white noise of density S in α itself: LS over (t, t²) leaves Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
     # Var(δθ) = 3 S / (g² T³)
+    noise_heading2 = terms.acc_heading / T**3 + terms.gyro_heading / T + terms.bounded_heading / T**5
     bounded = grade.base_motion_m_rts**2
-    noise_heading2 += 320.0 * bounded / (gravity * OMEGA_IE * np.cos(lat)) ** 2 / T**5
-    noise_level2 = 4.0 * q / (gravity**2 * T) + N2 * T / 3.0 + 3.0 * bounded / (gravity**2 * T**3)
-    heading2 = bias_heading**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
-    level2 = bias_level**2 + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
-    return AttitudeSigma(min(float(np.sqrt(heading2)) / DEG, SIGMA_UNKNOWN_DEG),
-                         min(float(np.sqrt(level2)) / DEG, SIGMA_UNKNOWN_DEG))
+    noise_level2 = (terms.acc_level / (terms.gravity2 * T) + grade.gyro_arw_rad_rts**2 * T / 3.0
+                    + 3.0 * bounded / (terms.gravity2 * T**3))
+    heading2 = terms.bias2[0] + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
+    level2 = terms.bias2[1] + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
+    return AttitudeSigma(min(math.sqrt(heading2) / DEG, SIGMA_UNKNOWN_DEG),
+                         min(math.sqrt(level2) / DEG, SIGMA_UNKNOWN_DEG))
 
 
 def heading_noise_variances(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> tuple[float, float]:
     """The least-squares heading variances (rad²) after ``elapsed_s`` seconds from each noise alone: the
     accelerometer's white noise, 12 VRW² / (g Ω cos L)² / T³, and the gyro's angle random walk,
     1.2 N² / (Ω cos L)² / T (see :func:`inertial_alignment_sigma`)."""
-    w_cos = OMEGA_IE * np.cos(lat)
+    terms = _sigma_terms(grade, lat, gravity)
     T = float(elapsed_s)
-    return (12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2 / T**3,
-            1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2 / T)
+    return terms.acc_heading / T**3, terms.gyro_heading / T
 
 
 def auto_solver(grade: SensorGrade, lat: float, gravity: float, heading_sigma_deg: float) -> str:
