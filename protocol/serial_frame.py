@@ -127,6 +127,25 @@ def encode_imu(seq: int, t: float, dtheta: np.ndarray, dv: np.ndarray, status: i
     return encode_frame(MSG_IMU, seq, time_ns_of(t), payload)
 
 
+def encode_imu_frames(seq: int, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> bytes:
+    """IMU frames for N samples at once (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, healthy), numbered from ``seq``:
+    the bytes of :func:`encode_imu` for each, joined, with numpy filling the fields (a fast writer's)."""
+    n = len(t)
+    qa, qv = quantise_imu(dtheta, dv)
+    frame = np.zeros((n, IMU_FRAME_BYTES), np.uint8)
+    frame[:, 0:2] = np.frombuffer(SYNC, np.uint8)
+    frame[:, 2], frame[:, 3] = VERSION, MSG_IMU
+    frame[:, 4:6] = np.array([IMU_PAYLOAD.size], "<u2").view(np.uint8)
+    frame[:, 6:8] = ((seq + np.arange(n)) & 0xFFFF).astype("<u2").view(np.uint8).reshape(n, 2)
+    frame[:, 8:16] = np.array([time_ns_of(float(x)) for x in t], "<u8").view(np.uint8).reshape(n, 8)
+    frame[:, 18:42] = np.hstack((qa, qv)).astype("<i4").view(np.uint8).reshape(n, 24)
+    rows = [bytearray(r) for r in frame]
+    for r in rows:
+        r[16:18] = struct.pack("<H", zlib.crc32(r[2:16]) & 0xFFFF)
+        r[46:50] = CRC.pack(zlib.crc32(r[2:46]))
+    return b"".join(rows)
+
+
 def time_ns_of(t: float) -> int:
     return round(t * 1e9)
 

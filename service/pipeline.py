@@ -39,10 +39,9 @@ def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> Sen
     return SensorGrade.from_datasheet(**figures)
 
 
-def _fold_until(solver: RecursiveK | CentredWahba, due: np.ndarray, dK: np.ndarray, trace_R: np.ndarray, folded: int,
-                sample: int) -> int:
-    """Fold the prepared observations taken at samples up to ``sample``; returns how many are folded."""
-    upto = int(np.searchsorted(due, sample, side="right"))
+def _fold_to(solver: RecursiveK | CentredWahba, dK: np.ndarray, trace_R: np.ndarray, folded: int, upto: int) -> int:
+    """Fold the prepared observations ``folded`` to ``upto`` (those taken up to a sample: ``np.searchsorted(due,
+    sample, side="right")``); returns how many are folded."""
     if upto > folded:
         solver.fold(dK[folded:upto], trace_R[folded:upto])
     return upto
@@ -264,8 +263,8 @@ class AlignmentPipeline:
         due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, *self._coarse_aid(self._aid(pending),
                                                                                     self._aid_epoch(pending)))
         folded = 0
-        for j in new:
-            folded = _fold_until(scratch.solver, due, dK, trace_R, folded, j)
+        for j, upto in zip(new, np.searchsorted(due, new, side="right").tolist(), strict=True):
+            folded = _fold_to(scratch.solver, dK, trace_R, folded, upto)
             records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(pending[j, 0]), q_b_b0[j],
                                         scratch))
         self._emitted_count = int(counts[new[-1]])
@@ -286,17 +285,24 @@ class AlignmentPipeline:
         counts = self._epoch_counts(t)
         epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
         self._epoch_count = int(counts[-1])
-        folded = 0
         solver = self.coarse.solver
-        for end in range(M - 1, len(t), M):
+        # per block: the observations to fold by its end, and its epochs with those to fold by each (one search each
+        # for the whole chunk, not per block)
+        ends = np.arange(M - 1, len(t), M)
+        fold_end = np.searchsorted(due, ends, side="right").tolist()
+        fold_epoch = np.searchsorted(due, epochs, side="right").tolist()
+        epochs_by = [0, *np.searchsorted(epochs, ends, side="right").tolist()]   # block b: epochs_by[b] to [b + 1]
+        folded = 0
+        for b, end in enumerate(ends.tolist()):
             measured = folded   # the block's observations, whether an epoch's record folded some of them already
-            for j in epochs[(epochs > end - M) & (epochs <= end)]:
-                folded = _fold_until(solver, due, dK, trace_R, folded, j)
+            for e in range(epochs_by[b], epochs_by[b + 1]):
+                j = epochs[e]
+                folded = _fold_to(solver, dK, trace_R, folded, fold_epoch[e])
                 if counts[j] > self._emitted_count:
                     records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
-            folded = _fold_until(solver, due, dK, trace_R, folded, end)
+            folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
             if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
                 self._measure_noise(observed_s[measured:folded], observed_alpha[measured:folded])
             self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],

@@ -31,6 +31,8 @@ from .sim.imu import simulate, true_increments
 from .sim.scenarios import get_scenario
 
 T = TypeVar("T")
+FLAT_OUT_MAX_FRAMES_S = 200_000
+"""The most frames per second the flat-out rows can write (encoded beforehand, so that the writer is not the bound)."""
 
 
 def rss_mib() -> float:
@@ -151,7 +153,7 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
     are written as fast as the pty takes them to find the sustained ingest rate (counted in
     published records: with a longer output period, the status counters would be needed).
     """
-    from sinsalign.protocol.serial_frame import encode_imu
+    from sinsalign.protocol.serial_frame import IMU_FRAME_BYTES, encode_imu_frames
 
     from .daemon_process import DaemonProcess
     from .virtual_imu import FramePlayer, write_all
@@ -172,13 +174,16 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
         latency = np.array([daemon.arrivals[round(tk, 6)] - wk for tk, wk in zip(t, written, strict=True)
                             if round(tk, 6) in daemon.arrivals] or [np.nan]) * 1e3
         received = daemon.count
-        # flat out: every frame as fast as the pty accepts it, for flat_out_s seconds of writing, counted by the
-        # daemon's own decoded samples (its state query), whatever its output period
+        # flat out: every frame as fast as the pty accepts it, for flat_out_s seconds of writing (the frames encoded
+        # beforehand: the writer must not be the bound), counted by the daemon's own decoded samples (its state
+        # query), whatever its output period
+        spare = round(flat_out_s * FLAT_OUT_MAX_FRAMES_S)
+        frames = encode_imu_frames(len(t), t[-1] + dt * np.arange(1, spare + 1), np.tile(dtheta[0], (spare, 1)),
+                                   np.tile(dv[0], (spare, 1)))
         before, start, n = daemon.samples_in(), time.monotonic(), 0
-        while time.monotonic() - start < flat_out_s:
-            write_all(daemon.pty.master_fd, b"".join(
-                encode_imu(len(t) + n + i, t[-1] + (n + i + 1) * dt, dtheta[0], dv[0]) for i in range(200)))
-            n += 200
+        while time.monotonic() - start < flat_out_s and n < spare:
+            write_all(daemon.pty.master_fd, frames[n * IMU_FRAME_BYTES:(n + 2000) * IMU_FRAME_BYTES])
+            n = min(n + 2000, spare)
         deadline = time.monotonic() + 10.0
         while (done := daemon.samples_in() - before) < n and time.monotonic() < deadline:
             time.sleep(0.02)

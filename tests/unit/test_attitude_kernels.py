@@ -6,14 +6,32 @@ compiled Jacobi eigen-solve gives the quaternion of the top eigenvector, THEN it
 32 ε max|K| / gap both of the true attitude (a noiseless K) and of numpy.linalg.eigh's eigenvector: the
 eigenvector's sensitivity to rounding, ε the double's spacing, gap the difference of K's two largest eigenvalues
 (it shrinks with the square of the spread: the heading is ill-determined until gravity has turned). GIVEN random
-quaternions, THEN the compiled DCM has dcm_from_quat's bits.
+quaternions, THEN the compiled DCM has dcm_from_quat's bits, and a record's angles, the chained coarse attitude and the
+turn to another attitude's heading are within a few units of the last place of the numpy forms they replace (libm's
+atan2, asin, sin and cos against numpy's vectorised ones, index-order sums against BLAS's), 180° turns and the poles of
+pitch included.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from sinsalign.service.align._attitude import dcm_from_quat_one, quaternion_from_K
-from sinsalign.service.align.conventions import dcm_from_quat, quat_from_dcm, quat_normalize
+from sinsalign.service.align._attitude import (
+    chained_quaternion,
+    dcm_from_quat_one,
+    quaternion_from_K,
+    record_angles,
+    with_heading_of_one,
+)
+from sinsalign.service.align.conventions import (
+    DEG,
+    dcm_from_euler,
+    dcm_from_quat,
+    euler_from_dcm,
+    misalignment,
+    quat_from_dcm,
+    quat_normalize,
+)
+from sinsalign.service.align.earth import C_n_n0_fixed
 from sinsalign.service.align.solvers import delta_K
 
 EPS = np.finfo(float).eps
@@ -68,3 +86,40 @@ def test_the_compiled_dcm_has_numpys_bits():
     for k in range(len(q)):
         assert dcm_from_quat_one(q[k]).tobytes() == stacked[k].tobytes()
         assert quat_from_dcm(dcm_from_quat_one(q[k])).tobytes() == quat_from_dcm(stacked[k]).tobytes()
+
+
+def random_quaternions(n: int, rng: np.random.Generator) -> np.ndarray:
+    """n random unit quaternions, then the hard cases: 180° turns about each axis, level at ±90° pitch."""
+    special = [quat_from_dcm(dcm_from_euler(h, p, r)) for h, p, r in
+               ((np.pi, 0.0, 0.0), (0.0, 0.0, np.pi), (0.0, np.pi / 2, 0.3), (1.0, -np.pi / 2, 0.0), (0.0, 0.0, 0.0))]
+    return np.vstack((quat_normalize(rng.normal(size=(n, 4))), special, [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]))
+
+
+ULPS = 1e-13   # degrees: a few units of the last place of 360°
+
+
+def test_a_record_s_angles_are_the_numpy_forms_to_the_last_places():
+    rng = np.random.default_rng(7)
+    for q in random_quaternions(3000, rng) * (1.0 + 1e-12 * rng.normal(size=(3007, 1))):
+        heading, pitch, roll = euler_from_dcm(dcm_from_quat(q))
+        q_unit, heading_deg, pitch_deg, roll_deg = record_angles(q)
+        want_heading = float(heading / DEG) % 360.0
+        assert 0.0 <= heading_deg < 360.0
+        assert abs((heading_deg - want_heading + 180.0) % 360.0 - 180.0) < ULPS
+        assert (abs(pitch_deg - pitch / DEG) < ULPS and abs(roll_deg - roll / DEG) < ULPS) or abs(pitch_deg) > 89.9
+        assert np.abs(np.array(q_unit) - q / np.linalg.norm(q)).max() < 4 * EPS
+
+
+def test_the_chained_coarse_attitude_and_the_heading_turn_are_the_numpy_forms_to_the_last_places():
+    rng = np.random.default_rng(8)
+    qs = random_quaternions(2000, rng)
+    for a, b in zip(qs, rng.permutation(qs), strict=True):
+        C_n_n0 = C_n_n0_fixed(0.6, rng.uniform(0.0, 1e5))
+        want = quat_from_dcm(C_n_n0.T @ dcm_from_quat(a) @ dcm_from_quat(b))
+        assert np.abs(chained_quaternion(C_n_n0, a, b) - want).max() < 8 * EPS or abs(want[0]) < 1e-6
+        C_level, C_heading = dcm_from_quat(a), dcm_from_quat(b)
+        turned = with_heading_of_one(C_level, C_heading)
+        phi_up = misalignment(C_level, C_heading)[2]
+        c, s = np.cos(phi_up), np.sin(phi_up)
+        assert np.abs(turned - np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ C_level).max() < 16 * EPS
+        assert abs(turned[2] - C_level[2]).max() == 0.0   # a turn about Up: the tilt of the first, as it was

@@ -33,6 +33,7 @@ from sinsalign.protocol.serial_frame import (
     encode_aiding,
     encode_frame,
     encode_imu,
+    encode_imu_frames,
 )
 from sinsalign.service.config import ConfigError, config_from_mapping
 
@@ -151,6 +152,15 @@ def exact_rows(decoder: FrameDecoder, data: bytes) -> tuple[list[tuple[float, ..
         else:
             others.append(frame)
     return rows, others
+
+
+def test_frames_encoded_at_once_are_each_frame_s_bytes():
+    rng = np.random.default_rng(3)
+    t = 1e6 + np.cumsum(rng.uniform(1e-4, 1e-2, 300))
+    dtheta, dv = rng.normal(0, 1e-3, (300, 3)), rng.normal(0, 0.1, (300, 3))
+    dtheta[5] = 10.0   # beyond full scale: clipped as encode_imu clips it
+    assert encode_imu_frames(65_400, t, dtheta, dv) == b"".join(
+        encode_imu(65_400 + k, t[k], dtheta[k], dv[k]) for k in range(300))
 
 
 FULL_SCALE = (-2**31, 2**31 - 1)
