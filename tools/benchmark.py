@@ -11,7 +11,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from statistics import median
-from typing import TypeVar
+from typing import TYPE_CHECKING, TypeVar
 
 import numpy as np
 from rich.progress import Progress
@@ -30,7 +30,14 @@ from .sim.files import write_simulation
 from .sim.imu import simulate, true_increments
 from .sim.scenarios import get_scenario
 
+if TYPE_CHECKING:
+    from .daemon_process import DaemonProcess
+
 T = TypeVar("T")
+RSS_FRAMES = 2_400_000
+"""Frames of the daemon's memory row (3.3 h at 200 Hz)."""
+RSS_WARM_UP_FRAMES = 200_000
+"""Frames the daemon takes before its RSS is taken as the start of the memory row (buffers, caches, the allocator)."""
 FLAT_OUT_MAX_FRAMES_S = 200_000
 """The most frames per second the flat-out rows can write (encoded beforehand, so that the writer is not the bound)."""
 
@@ -143,15 +150,19 @@ class LiveBench:
     cpu_share: float              # of one core, daemon process, over the playing time
     max_ingest_frames_s: float    # frames/s the daemon kept up with when fed flat out
     rss_mib: float                # the daemon's resident memory at the end
+    rss_growth_mib: float         # over the ``rss_frames`` written flat out after the first RSS_WARM_UP_FRAMES
 
 
-def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: float | None = None) -> LiveBench:
+def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: float | None = None,
+               rss_frames: int = 0) -> LiveBench:
     """Virtual IMU → pty → ``sinsalign serve`` (own process) → Zenoh subscriber, on loopback.
 
     With ``output_period_s`` None attitude is published for every sample (the worst case), so each
     frame's write time pairs with the arrival of its attitude: latency p50/p99/max. Then frames
     are written as fast as the pty takes them to find the sustained ingest rate (counted in
-    published records: with a longer output period, the status counters would be needed).
+    published records: with a longer output period, the status counters would be needed). Then ``rss_frames``
+    more written flat out (0: none), the daemon's RSS taken after the first :data:`RSS_WARM_UP_FRAMES` of them and at
+    the end.
     """
     from sinsalign.protocol.serial_frame import IMU_FRAME_BYTES, encode_imu_frames
 
@@ -188,9 +199,33 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
         while (done := daemon.samples_in() - before) < n and time.monotonic() < deadline:
             time.sleep(0.02)
         ingest = done / (time.monotonic() - start)
+        growth = (_rss_growth(daemon, rss_frames, len(t) + n, t[-1] + n * dt, dt, dtheta[0], dv[0]) if rss_frames
+                  else 0.0)
         rss = daemon.rss_mib()
     return LiveBench(scenario.rate_hz, len(t), received, float(np.percentile(latency, 50)),
-                     float(np.percentile(latency, 99)), float(latency.max()), cpu_share, ingest, rss)
+                     float(np.percentile(latency, 99)), float(latency.max()), cpu_share, ingest, rss, growth)
+
+
+def _rss_growth(daemon: DaemonProcess, frames: int, seq: int, t_last: float, dt: float, dtheta: np.ndarray,
+                dv: np.ndarray) -> float:
+    """The daemon's RSS growth (MiB) over ``frames`` written flat out after the first :data:`RSS_WARM_UP_FRAMES`
+    (numbered from ``seq``, a still base after ``t_last``), each piece encoded as it goes."""
+    from sinsalign.protocol.serial_frame import encode_imu_frames
+
+    from .virtual_imu import write_all
+
+    before, rss_start, piece = daemon.samples_in(), None, 100_000
+    for first in range(0, frames, piece):
+        count = min(piece, frames - first)
+        if rss_start is None and first >= RSS_WARM_UP_FRAMES:
+            rss_start = daemon.rss_mib()
+        write_all(daemon.pty.master_fd, encode_imu_frames(
+            seq + first, t_last + dt * (first + np.arange(1, count + 1)), np.tile(dtheta, (count, 1)),
+            np.tile(dv, (count, 1))), timeout_s=30.0)
+    deadline = time.monotonic() + 30.0
+    while daemon.samples_in() - before < frames and time.monotonic() < deadline:
+        time.sleep(0.05)
+    return 0.0 if rss_start is None else daemon.rss_mib() - rss_start
 
 
 @dataclass(slots=True)
@@ -279,10 +314,13 @@ def report(seconds: float, repeat: int, live: bool, live_seconds: float, stream_
             rows.row("daemon flat out through the pty, attitude every sample",
                      f"{every.max_ingest_frames_s:,.0f} frames/s",
                      f"CPU {100 * every.cpu_share:.0f} % of a core at 200 Hz")
-            default = rows.measure(lambda: bench_live(live_seconds, output_period_s=1.0))
+            default = rows.measure(lambda: bench_live(live_seconds, output_period_s=1.0, rss_frames=RSS_FRAMES))
             rows.row("daemon flat out through the pty, the default 1-Hz output",
                      f"{default.max_ingest_frames_s:,.0f} frames/s",
-                     f"CPU {100 * default.cpu_share:.1f} % of a core at 200 Hz; RSS {default.rss_mib:.0f} MiB")
+                     f"CPU {100 * default.cpu_share:.1f} % of a core at 200 Hz")
+            rows.row(f"daemon RSS over {RSS_FRAMES / 1e6:g} M frames flat out, growth after the first "
+                     f"{RSS_WARM_UP_FRAMES:,}", f"{default.rss_growth_mib:+.2f} MiB",
+                     f"{default.rss_mib:.0f} MiB at the end")
         if stream_hours > 0:
             samples = rows.measure(lambda: bench_stream_memory(stream_hours, progress=False))
             rows.row(f"pipeline RSS over a {stream_hours:g}-h stream, growth after the first hour",

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from sinsalign.protocol.serial_frame import encode_imu
+from sinsalign.protocol.serial_frame import encode_imu_frames
 
 from .daemon_process import DaemonProcess
 from .sim.imu import true_increments
@@ -48,7 +48,7 @@ def soak(hours: float = 24.0, report_every_s: float = 3600.0, seed: int = 0,
             dtheta = dtheta0 + gyro_std * rng.standard_normal((block, 3))
             dv = dv0 + acc_std * rng.standard_normal((block, 3))
             first = second * block
-            frames = b"".join(encode_imu(first + i, (first + i + 1) * dt, dtheta[i], dv[i]) for i in range(block))
+            frames = encode_imu_frames(first, (first + np.arange(1, block + 1)) * dt, dtheta, dv)
             write_all(daemon.pty.master_fd, frames, timeout_s=10.0)
             written[float(second + 1)] = time.monotonic()   # the epoch frame is the last of the block
             if second + 1 >= next_report:
