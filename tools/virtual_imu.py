@@ -49,9 +49,13 @@ class PtyPair:
         os.set_blocking(self.master_fd, False)
 
     def close(self) -> None:
+        """Close both ends, once: a second close of an fd number closes whatever file has it by then (another pty's,
+        a serial port's), the fault of another reader far away."""
         for fd in (self.master_fd, self._slave_fd):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+            if fd >= 0:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self.master_fd = self._slave_fd = -1
 
 
 def write_all(fd: int, data: bytes, timeout_s: float = WRITE_TIMEOUT_S) -> None:
