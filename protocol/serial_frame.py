@@ -289,15 +289,17 @@ class FrameDecoder:
         self._buffer += data
         out: list[Frame | np.ndarray] = []
         buf = self._buffer
-        pos = 0
+        pos = used = 0
+        # one array for every run of this call (each run a view of it): room for as many frames as the bytes hold
+        rows = np.empty((len(buf) // IMU_FRAME_BYTES, IMU_ROW_COLUMNS)) if fast else None
         while True:
-            if fast and self.sequence.last is not None:
-                rows = np.empty(((len(buf) - pos) // IMU_FRAME_BYTES, IMU_ROW_COLUMNS))
-                n, pos, last = imu_run(buf, pos, self.sequence.last, rows)
+            if rows is not None and self.sequence.last is not None:
+                n, pos, last = imu_run(buf, pos, self.sequence.last, rows[used:])
                 if n:
                     self.sequence.follow(last)
                     self.counters.frames += n
-                    out.append(rows[:n])
+                    out.append(rows[used:used + n])
+                    used += n
             start = buf.find(SYNC, pos)
             if start < 0:
                 keep = sync_tail(buf, pos, SYNC)
