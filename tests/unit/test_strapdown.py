@@ -1,7 +1,18 @@
 """Simulator exactness and the inertial-frame integrator."""
+import copy
+
 import numpy as np
 import pytest
-from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment, quat_from_rotvec, quat_multiply
+from sinsalign.service.align.conventions import (
+    DEG,
+    cross,
+    dcm_from_quat,
+    misalignment,
+    quat_from_rotvec,
+    quat_multiply,
+    quat_normalize,
+    quat_rotate,
+)
 from sinsalign.service.align.earth import C_n_n0_fixed, beta_fixed
 from sinsalign.service.align.strapdown import InertialIntegrator, prefix_quat_product
 from sinsalign.tools.sim.imu import ImuErrors, simulate
@@ -18,19 +29,56 @@ def test_prefix_product_equals_sequential_product():
         np.testing.assert_allclose(P[k], q, atol=1e-14)
 
 
-def test_the_plain_float_block_chain_is_quat_multiply_then_quat_normalize_to_the_bit():
-    """The chain of block starts repeats quat_multiply and quat_normalize in plain floats (numpy's per-call cost on
-    4 numbers); it must stay their exact copy, or a replay and the live path would part at the block boundaries."""
-    from sinsalign.service.align.conventions import quat_normalize
-    from sinsalign.service.align.strapdown import _chain_block_starts
-    rng = np.random.default_rng(7)
-    totals = quat_from_rotvec(0.3 * rng.standard_normal((200, 3)))
-    start = quat_normalize(rng.standard_normal(4))
-    chained = _chain_block_starts(start, totals)
-    expected = [start]
-    for total in totals[:-1]:
-        expected.append(quat_normalize(quat_multiply(expected[-1], total)))
-    assert np.array_equal(chained, np.array(expected))
+def _numpy_integrate(state: list[np.ndarray], dtheta: np.ndarray, dv: np.ndarray, M: int):
+    """The block-wise numpy form of the integration (strapdown.md): the oracle of the compiled one. ``state``:
+    [q_b_b0, α_b0, Δθ_prev, Δv_prev], updated."""
+    q0, alpha0, dtheta_prev0, dv_prev0 = state
+    dtheta_prev = np.concatenate((dtheta_prev0[None], dtheta[:-1]))
+    dv_prev = np.concatenate((dv_prev0[None], dv[:-1]))
+    phi = dtheta + cross(dtheta_prev, dtheta) / 12.0
+    local = prefix_quat_product(quat_from_rotvec(phi).reshape(-1, M, 4))
+    rotated = cross(dtheta, dv)
+    dv_body = (dv + 0.5 * rotated + cross(dtheta, rotated) / 6.0
+               + (cross(dtheta_prev, dv) + cross(dv_prev, dtheta)) / 12.0).reshape(-1, M, 3)
+    starts = [q0]
+    for total in local[:-1, -1]:
+        starts.append(quat_normalize(quat_multiply(starts[-1], total)))
+    q_first = np.array(starts)
+    q = quat_normalize(quat_multiply(q_first[:, None], local))
+    q_start = np.concatenate((q_first[:, None], q[:, :-1]), axis=1)
+    within = np.cumsum(quat_rotate(q_start, dv_body), axis=1)
+    alpha_first = np.cumsum(np.concatenate((alpha0[None], within[:-1, -1])), axis=0)
+    alpha = alpha_first[:, None] + within
+    state[:] = q[-1, -1], alpha[-1, -1], dtheta[-1], dv[-1]
+    return q.reshape(-1, 4), alpha.reshape(-1, 3)
+
+
+@pytest.mark.parametrize("M", [1, 2, 7, 20, 200])
+def test_the_compiled_integration_is_the_numpy_block_form_to_the_bit(M):
+    """The compiled pass must stay the numpy form operation for operation, for any block length, chunks of several
+    blocks, rates from still to tumbling (both branches of sin(x)/x) and a long-running state; then a prefix of a block
+    integrates alone to the same bits as inside the block (the live path's records of an incomplete block)."""
+    rng = np.random.default_rng(M)
+    integrator = InertialIntegrator()
+    state = [integrator.q_b_b0, integrator.alpha_b0, np.zeros(3), np.zeros(3)]
+    for scale in (1e-9, 1e-5, 2e-4, 0.05, 2.0):
+        n = 3 * M
+        dtheta, dv = scale * rng.standard_normal((n, 3)), 0.05 * rng.standard_normal((n, 3)) + [0, 0, 0.049]
+        before = copy.copy(integrator)
+        q, alpha = integrator.integrate(dtheta, dv, M)
+        q_ref, alpha_ref = _numpy_integrate(state, dtheta, dv, M)
+        assert np.array_equal(q, q_ref) and np.array_equal(alpha, alpha_ref)
+        assert np.array_equal(integrator.q_b_b0, state[0]) and np.array_equal(integrator.alpha_b0, state[1])
+        # the copy taken before runs ahead alone on a block's prefix: the same bits, the original untouched
+        ahead = copy.copy(before)
+        q_prefix, alpha_prefix = ahead.integrate(dtheta[:max(1, M // 2)], dv[:max(1, M // 2)])
+        assert np.array_equal(q_prefix, q[:max(1, M // 2)]) and np.array_equal(alpha_prefix, alpha[:max(1, M // 2)])
+        assert not np.array_equal(before.q_b_b0, ahead.q_b_b0) or scale < 1e-8
+
+
+def test_a_chunk_that_is_not_whole_blocks_is_refused():
+    with pytest.raises(ValueError, match="not whole blocks of 20"):
+        InertialIntegrator().integrate(np.zeros((30, 3)), np.zeros((30, 3)), 20)
 
 
 def test_perfect_strapdown_recovers_the_simulated_truth_over_600_s():

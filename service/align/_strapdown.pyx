@@ -1,0 +1,143 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The inertial-frame strapdown integration compiled (built at install; docs/performance.md, strapdown.py).
+
+One pass over a chunk of whole blocks does what the block-wise numpy form of the algorithm does (coning and
+sculling terms, a Hillis-Steele prefix product of each block's rotations, the chain of block starts, the
+normalisation, the rotation of Δv into b0, the running sums), operation for operation in numpy's order, with the C
+library's sin, cos and sqrt that numpy calls for float64, and no fused multiply-adds (-ffp-contract=off): the same
+bits (tests/unit/test_strapdown.py keeps the numpy form as the oracle). Each element of a prefix product depends on
+its block's earlier samples only, so a block's first n samples integrate to the same bits alone as within the
+whole block: what the live path's records of an incomplete block rely on.
+
+Frames and units: Δθ (rad) and Δv (m/s) in body axes; the attitude C_b^b0 as [w, x, y, z] with w ≥ 0; α (m/s) in
+b0 axes.
+"""
+from libc.math cimport cos, sin, sqrt
+
+import numpy as np
+
+
+cdef inline void _cross(const double* a, const double* b, double* out) noexcept nogil:
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+cdef inline void _product(const double* p, const double* q, double* out) noexcept nogil:
+    """p ⊗ q (Hamilton, [w, x, y, z]): conventions.quat_multiply's terms in its order; ``out`` may be ``q``."""
+    cdef double w = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
+    cdef double x = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
+    cdef double y = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
+    cdef double z = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
+    out[0], out[1], out[2], out[3] = w, x, y, z
+
+
+cdef inline void _normalize(double* q) noexcept nogil:
+    """conventions.quat_normalize in place: divide by the norm, then the sign with w ≥ 0."""
+    cdef double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    cdef int i
+    for i in range(4):
+        q[i] = q[i] / norm
+    if q[0] < 0.0:
+        for i in range(4):
+            q[i] = -q[i]
+
+
+cdef inline void _from_rotvec(const double* phi, double* q) noexcept nogil:
+    """conventions.quat_from_rotvec: exp(φ/2), sin(x)/x by its series below 1e-4 rad."""
+    cdef double half = 0.5 * sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2]), k
+    if half < 1e-4:
+        k = 0.5 * (1.0 - half * half / 6.0)
+    else:
+        k = 0.5 * sin(half) / half
+    q[0] = cos(half)
+    q[1], q[2], q[3] = k * phi[0], k * phi[1], k * phi[2]
+
+
+cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, double* dv_prev,
+                     const double* dtheta, const double* dv, long n, long M, double* q, double* alpha) noexcept nogil:
+    """The chunk's n samples (n a multiple of M) into q (n, 4) and α (n, 3), the state arrays updated in place.
+    Block by block: the block's rotations and body-frame Δv, their prefix product chained to the block's start, then
+    Δv rotated by the attitude at each sample's start and summed from the block's start."""
+    cdef long block, start, k, i, step
+    cdef double cr[3]
+    cdef double cr2[3]
+    cdef double rotated[3]
+    cdef double turned[3]
+    cdef double phi[3]
+    cdef double within[3]
+    cdef double first[4]
+    cdef double* P
+    cdef double* body
+    cdef const double* th_prev
+    cdef const double* v_prev
+    cdef const double* th
+    cdef const double* v
+    cdef const double* q_at_start
+    for block in range(n // M):
+        start = block * M
+        for i in range(4):
+            first[i] = q_b_b0[i]
+        P = q + 4 * start
+        for k in range(start, start + M):
+            th, v = dtheta + 3 * k, dv + 3 * k
+            th_prev = dtheta + 3 * (k - 1) if k > 0 else dtheta_prev
+            v_prev = dv + 3 * (k - 1) if k > 0 else dv_prev
+            _cross(th_prev, th, cr)
+            for i in range(3):
+                phi[i] = th[i] + cr[i] / 12.0
+            _from_rotvec(phi, q + 4 * k)
+            # Δv + ½ Δθ×Δv + ⅙ Δθ×(Δθ×Δv) + (1/12)(Δθ_prev×Δv + Δv_prev×Δθ), held in α's row until it is summed
+            _cross(th, v, rotated)
+            _cross(th, rotated, turned)
+            _cross(th_prev, v, cr)
+            _cross(v_prev, th, cr2)
+            body = alpha + 3 * k
+            for i in range(3):
+                body[i] = v[i] + 0.5 * rotated[i] + turned[i] / 6.0 + (cr[i] + cr2[i]) / 12.0
+        # Hillis-Steele: P[s:] = P[:-s] ⊗ P[s:], from the top down so every right-hand side is the previous step's
+        step = 1
+        while step < M:
+            for k in range(M - 1, step - 1, -1):
+                _product(P + 4 * (k - step), P + 4 * k, P + 4 * k)
+            step *= 2
+        for k in range(start, start + M):
+            _product(first, q + 4 * k, q + 4 * k)
+            _normalize(q + 4 * k)
+        # α: the block's own running sum of C(q at the sample's start) Δv_body (quat_rotate: v + w t + u × t with
+        # t = 2 u × v), then the block's start added to it
+        for k in range(start, start + M):
+            q_at_start = q + 4 * (k - 1) if k > start else &first[0]
+            body = alpha + 3 * k
+            _cross(q_at_start + 1, body, rotated)
+            for i in range(3):
+                rotated[i] = 2.0 * rotated[i]
+            _cross(q_at_start + 1, rotated, turned)
+            for i in range(3):
+                turned[i] = body[i] + q_at_start[0] * rotated[i] + turned[i]
+                within[i] = turned[i] if k == start else within[i] + turned[i]
+                body[i] = alpha_b0[i] + within[i]
+        for i in range(4):
+            q_b_b0[i] = q[4 * (start + M - 1) + i]
+        for i in range(3):
+            alpha_b0[i] = alpha[3 * (start + M - 1) + i]
+    for i in range(3):
+        dtheta_prev[i] = dtheta[3 * (n - 1) + i]
+        dv_prev[i] = dv[3 * (n - 1) + i]
+
+
+def integrate(double[::1] q_b_b0, double[::1] alpha_b0, double[::1] dtheta_prev, double[::1] dv_prev,
+              const double[:, ::1] dtheta, const double[:, ::1] dv, long block_samples):
+    """N samples (Δθ, Δv (N, 3), N a multiple of ``block_samples``) from the state (C_b^b0 (4,), α (3,), the
+    previous Δθ and Δv (3,)), which is updated in place; returns C_b^b0 (N, 4) and α (N, 3) at the samples' ends."""
+    cdef long n = dtheta.shape[0]
+    if dv.shape[0] != n or dtheta.shape[1] != 3 or dv.shape[1] != 3 or n == 0 or block_samples < 1 \
+            or n % block_samples:
+        raise ValueError(f"{n} samples (3 columns each) are not whole blocks of {block_samples}")
+    q_out = np.empty((n, 4))
+    alpha_out = np.empty((n, 3))
+    cdef double[:, ::1] q = q_out
+    cdef double[:, ::1] alpha = alpha_out
+    _integrate(&q_b_b0[0], &alpha_b0[0], &dtheta_prev[0], &dv_prev[0], &dtheta[0, 0], &dv[0, 0], n, block_samples,
+               &q[0, 0], &alpha[0, 0])
+    return q_out, alpha_out
