@@ -18,6 +18,7 @@ Quaternions are Hamilton [w, x, y, z] with w ≥ 0, as conventions.quat_normaliz
 from libc.math cimport M_PI, asin, atan2, cos, fabs, fmod, sin, sqrt
 
 include "_linalg.pxi"
+include "_quaternion.pxi"
 
 import numpy as np
 
@@ -51,39 +52,14 @@ def quaternion_from_K(const double[:, :] K):
 
 def dcm_from_quat_one(const double[::1] q):
     """C (3, 3) of one unit quaternion [w, x, y, z]: conventions.dcm_from_quat's formula, the same bits."""
-    cdef double w = q[0], x = q[1], y = q[2], z = q[3]
-    cdef double xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z
-    cdef double wx = w * x, wy = w * y, wz = w * z
     out = np.empty((3, 3))
     cdef double[:, ::1] C = out
-    C[0, 0], C[0, 1], C[0, 2] = 1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)
-    C[1, 0], C[1, 1], C[1, 2] = 2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)
-    C[2, 0], C[2, 1], C[2, 2] = 2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)
+    _dcm(q[0], q[1], q[2], q[3], &C[0, 0])
     return out
 
 
 cdef double DEG = M_PI / 180.0
 cdef double TWO_PI = 2.0 * M_PI
-
-
-cdef void _dcm(double w, double x, double y, double z, double* C) noexcept nogil:
-    """C (row-major 9) of [w, x, y, z]: the formula of dcm_from_quat_one."""
-    cdef double xx = x * x, yy = y * y, zz = z * z, xy = x * y, xz = x * z, yz = y * z
-    cdef double wx = w * x, wy = w * y, wz = w * z
-    C[0], C[1], C[2] = 1.0 - 2.0 * (yy + zz), 2.0 * (xy - wz), 2.0 * (xz + wy)
-    C[3], C[4], C[5] = 2.0 * (xy + wz), 1.0 - 2.0 * (xx + zz), 2.0 * (yz - wx)
-    C[6], C[7], C[8] = 2.0 * (xz - wy), 2.0 * (yz + wx), 1.0 - 2.0 * (xx + yy)
-
-
-cdef void _normalize(double* q) noexcept nogil:
-    """q / |q|, w ≥ 0: conventions.quat_normalize."""
-    cdef double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    cdef int i
-    for i in range(4):
-        q[i] = q[i] / norm
-    if q[0] < 0.0:
-        for i in range(4):
-            q[i] = -q[i]
 
 
 cdef void _shepperd(const double* M, double* q) noexcept nogil:
@@ -107,7 +83,7 @@ cdef void _shepperd(const double* M, double* q) noexcept nogil:
     _normalize(q)
 
 
-cdef void _product(const double* A, const double* B, double* out) noexcept nogil:
+cdef void _matmul3(const double* A, const double* B, double* out) noexcept nogil:
     """A B of row-major 3×3 matrices, each term summed in index order."""
     cdef int i, j
     for i in range(3):
@@ -129,8 +105,8 @@ def chained_quaternion(const double[:, :] C_n_n0, const double[::1] q_b_n0, cons
             T[3 * i + j] = C_n_n0[j, i]
     _dcm(q_b_n0[0], q_b_n0[1], q_b_n0[2], q_b_n0[3], A)
     _dcm(q_b_b0[0], q_b_b0[1], q_b_b0[2], q_b_b0[3], B)
-    _product(T, A, P)
-    _product(P, B, M)
+    _matmul3(T, A, P)
+    _matmul3(P, B, M)
     out = np.empty(4)
     cdef double[::1] o = out
     _shepperd(M, &o[0])

@@ -9,13 +9,15 @@ order, where numpy's BLAS may add them in another: those agree to the last few b
 
 Units are SI: time s, angles rad, α and β m/s; frames as in service/align/earth.py and noise_check.py.
 """
-from libc.math cimport cos, fabs, sin, sqrt
+from libc.math cimport cos, fabs, isfinite, sin, sqrt
 
 include "_linalg.pxi"
+include "_quaternion.pxi"
 
 import numpy as np
 
 cdef double OMEGA_IE = 7.2921151467e-5   # service/align/earth.OMEGA_IE (rad/s)
+cdef double SWING_RIDGE = 1e-12   # service/align/swing_bias.RIDGE
 
 
 cdef inline void _beta_fixed(double lat, double gravity, double t, double* out) noexcept nogil:
@@ -286,3 +288,160 @@ def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const 
         s[j] = sqrt(max(diagonal / (scale[j] * scale[j]), 0.0))
     return np.array([best[0], best[1], best[2]]), se
 
+
+
+cdef inline void _earth_turn_integrals(double t, double* out) noexcept nogil:
+    """earth.earth_turn_integrals of a scalar: (sin Ωt / Ω, (1 − cos Ωt) / Ω, t − sin Ωt / Ω) s."""
+    cdef double wt = OMEGA_IE * t, wt2 = wt * wt, s_half = sin(0.5 * wt)
+    out[0] = sin(wt) / OMEGA_IE
+    out[1] = 2.0 * (s_half * s_half) / OMEGA_IE
+    if wt > 1e-3:
+        out[2] = t - sin(wt) / OMEGA_IE
+    else:
+        out[2] = t * wt2 / 6.0 * (1.0 - wt2 / 20.0 + wt2 * wt2 / 840.0)
+
+
+cdef inline double _at_least(double x, double floor) noexcept nogil:
+    """numpy.maximum(x, floor) for a finite floor: NaN stays NaN."""
+    return floor if x < floor else x
+
+
+def swing_normal_equations(const double[:] elapsed_s, const double[:, :] q_b_b0, const double[:, :] alpha,
+                           double vrw2, double t_last, const double[:] basis_last, const double[:] alpha_last,
+                           const double[:, :] C_last, const double[:, :] M_last, const double[:, :] normal_last,
+                           const double[:] rhs_last):
+    """SwingBias.correct's sums over K observations (elapsed (K,) s, C_b^b0 (K, 4), α (K, 3) m/s) from the fit's
+    state at the last one: for each, the equilibrated normal system of the fit up to it, ready for the solve
+    (matrix with the ridge (K, 12, 12), right side (K, 12), the scale (K, 12) that takes its solution back to the
+    parameters), M(t) (K, 3, 3) and E(t)'s integrals (K, 3); then the new state's C_b^b0 (3, 3), normal matrix
+    (12, 12) and right side (12,). swing_bias.py's numpy form operation for operation: the same bits."""
+    cdef long n = elapsed_s.shape[0], k, r, c, i, j
+    scaled_out = np.empty((n, 12, 12))
+    scaled_rhs_out = np.empty((n, 12))
+    scale_out = np.empty((n, 12))
+    M_out = np.empty((n, 3, 3))
+    basis_out = np.empty((n, 3))
+    C_out = np.empty((3, 3))
+    normal_out = np.empty((12, 12))
+    rhs_out = np.empty(12)
+    cdef double[:, :, ::1] scaled = scaled_out
+    cdef double[:, ::1] scaled_rhs = scaled_rhs_out
+    cdef double[:, ::1] scale = scale_out
+    cdef double[:, :, ::1] Ms = M_out
+    cdef double[:, ::1] basis = basis_out
+    cdef double[:, ::1] normal = normal_out
+    cdef double[::1] rhs = rhs_out
+    cdef double[:, ::1] C_last_out = C_out
+    cdef double C_prev[9]
+    cdef double C[9]
+    cdef double M[9]
+    cdef double dM[9]
+    cdef double basis_prev[3]
+    cdef double alpha_prev[3]
+    cdef double dalpha[3]
+    cdef double X[3 * 12]
+    cdef double t_prev = t_last, dt, weight, XtX, Xtz
+    for i in range(3):
+        basis_prev[i], alpha_prev[i] = basis_last[i], alpha_last[i]
+        for j in range(3):
+            C_prev[3 * i + j], M[3 * i + j] = C_last[i, j], M_last[i, j]
+    for i in range(12):
+        rhs[i] = rhs_last[i]
+        for j in range(12):
+            normal[i, j] = normal_last[i, j]
+    for k in range(n):
+        dt = elapsed_s[k] - t_prev
+        _dcm(q_b_b0[k, 0], q_b_b0[k, 1], q_b_b0[k, 2], q_b_b0[k, 3], C)
+        _earth_turn_integrals(elapsed_s[k], &basis[k, 0])
+        for i in range(9):
+            dM[i] = 0.5 * dt * (C_prev[i] + C[i])
+            M[i] = M[i] + dM[i]
+        # the increment's design rows [ΔP1 I, ΔP2 I, ΔP3 I, ΔM] (3, 12), the identity's zeros multiplied as numpy does
+        for r in range(3):
+            for i in range(3):
+                for c in range(3):
+                    X[12 * r + 3 * i + c] = (basis[k, i] - basis_prev[i]) * (1.0 if r == c else 0.0)
+            for c in range(3):
+                X[12 * r + 9 + c] = dM[3 * r + c]
+            dalpha[r] = alpha[k, r] - alpha_prev[r]
+        weight = 1.0 / _at_least(vrw2 * dt, 1e-300)
+        for i in range(12):
+            for j in range(12):
+                # numpy's sum() of the three rows starts from the integer 0: 0 + (−0.0) is +0.0
+                XtX = 0.0 + X[i] * X[j] + X[12 + i] * X[12 + j] + X[24 + i] * X[24 + j]
+                normal[i, j] = normal[i, j] + weight * XtX
+            Xtz = 0.0 + X[i] * dalpha[0] + X[12 + i] * dalpha[1] + X[24 + i] * dalpha[2]
+            rhs[i] = rhs[i] + weight * Xtz
+        for i in range(12):
+            scale[k, i] = 1.0 / sqrt(_at_least(normal[i, i], 1e-300))
+        for i in range(12):
+            for j in range(12):
+                scaled[k, i, j] = normal[i, j] * scale[k, i] * scale[k, j] + (SWING_RIDGE if i == j else 0.0)
+            scaled_rhs[k, i] = scale[k, i] * rhs[i]
+        for i in range(9):
+            C_prev[i] = C[i]
+            Ms[k, i // 3, i % 3] = M[i]
+        for i in range(3):
+            basis_prev[i], alpha_prev[i] = basis[k, i], alpha[k, i]
+        t_prev = elapsed_s[k]
+    for i in range(9):
+        C_last_out[i // 3, i % 3] = C_prev[i]
+    return scaled_out, scaled_rhs_out, scale_out, M_out, basis_out, C_out, normal_out, rhs_out
+
+
+cdef void _earth_axis(const double* params, double lat_sign, double* w) noexcept nogil:
+    """w (3,) from the fitted b, c of ``params`` (12,): c = w × b, |w| = 1, the latitude's sign settling its part
+    along b; 0 where it is not finite (no fit yet): swing_bias's earth_axis form, the same bits."""
+    cdef const double* b = params
+    cdef const double* c = params + 3
+    cdef double b2 = b[0] * b[0] + b[1] * b[1] + b[2] * b[2]
+    cdef double inner = 1.0 - (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]) / b2
+    cdef double along = lat_sign * sqrt(0.0 if inner < 0.0 else inner), root_b2 = sqrt(b2), norm
+    cdef double bc[3]
+    cdef int i
+    _cross(b, c, bc)
+    for i in range(3):
+        w[i] = bc[i] / b2 + along * b[i] / root_b2
+    norm = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    for i in range(3):
+        w[i] = w[i] / norm
+    if not (isfinite(w[0]) and isfinite(w[1]) and isfinite(w[2])):
+        w[0] = w[1] = w[2] = 0.0
+
+
+def earth_axis(const double[:] params, double lat_sign):
+    """The Earth axis w (3,) in b0 axes from the swing-bias fit's ``params`` (12,): c = w × b (0: no fit)."""
+    out = np.empty(3)
+    cdef double[::1] w = out
+    cdef double p[12]
+    cdef int i
+    for i in range(12):
+        p[i] = params[i]
+    _earth_axis(p, lat_sign, &w[0])
+    return out
+
+
+def swing_corrected(const double[:, :] alpha, const double[:, :, :] M, const double[:, :] basis,
+                    const double[:, :] params, double lat_sign):
+    """α (K, 3) m/s less D(t)∇̂ = M(t)∇̂ − (P1 I + P2 [w×] + P3 w wᵀ)∇̂ at each of K observations, each with the
+    fit's parameters (K, 12) up to it: swing_bias's numpy form, the same bits."""
+    cdef long n = alpha.shape[0], k
+    cdef int i
+    cdef double p[12]
+    cdef double w[3]
+    cdef double wn[3]
+    cdef double along, static, term
+    cdef const double* nabla = p + 9
+    out = np.empty((n, 3))
+    cdef double[:, ::1] o = out
+    for k in range(n):
+        for i in range(12):
+            p[i] = params[k, i]
+        _earth_axis(p, lat_sign, w)
+        _cross(w, nabla, wn)
+        along = w[0] * nabla[0] + w[1] * nabla[1] + w[2] * nabla[2]
+        for i in range(3):
+            static = basis[k, 0] * nabla[i] + basis[k, 1] * wn[i] + basis[k, 2] * (along * w[i])
+            term = M[k, i, 0] * nabla[0] + M[k, i, 1] * nabla[1] + M[k, i, 2] * nabla[2] - static
+            o[k, i] = alpha[k, i] - term
+    return out

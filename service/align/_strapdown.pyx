@@ -14,33 +14,9 @@ b0 axes.
 """
 from libc.math cimport cos, sin, sqrt
 
+include "_quaternion.pxi"
+
 import numpy as np
-
-
-cdef inline void _cross(const double* a, const double* b, double* out) noexcept nogil:
-    out[0] = a[1] * b[2] - a[2] * b[1]
-    out[1] = a[2] * b[0] - a[0] * b[2]
-    out[2] = a[0] * b[1] - a[1] * b[0]
-
-
-cdef inline void _product(const double* p, const double* q, double* out) noexcept nogil:
-    """p ⊗ q (Hamilton, [w, x, y, z]): conventions.quat_multiply's terms in its order; ``out`` may be ``q``."""
-    cdef double w = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
-    cdef double x = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
-    cdef double y = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
-    cdef double z = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
-    out[0], out[1], out[2], out[3] = w, x, y, z
-
-
-cdef inline void _normalize(double* q) noexcept nogil:
-    """conventions.quat_normalize in place: divide by the norm, then the sign with w ≥ 0."""
-    cdef double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    cdef int i
-    for i in range(4):
-        q[i] = q[i] / norm
-    if q[0] < 0.0:
-        for i in range(4):
-            q[i] = -q[i]
 
 
 cdef inline void _from_rotvec(const double* phi, double* q) noexcept nogil:
@@ -99,10 +75,10 @@ cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, doub
         step = 1
         while step < M:
             for k in range(M - 1, step - 1, -1):
-                _product(P + 4 * (k - step), P + 4 * k, P + 4 * k)
+                _quat_product(P + 4 * (k - step), P + 4 * k, P + 4 * k)
             step *= 2
         for k in range(start, start + M):
-            _product(first, q + 4 * k, q + 4 * k)
+            _quat_product(first, q + 4 * k, q + 4 * k)
             _normalize(q + 4 * k)
         # α: the block's own running sum of C(q at the sample's start) Δv_body (quat_rotate: v + w t + u × t with
         # t = 2 u × v), then the block's start added to it

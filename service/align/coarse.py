@@ -19,6 +19,11 @@ from .solvers import CentredWahba, RecursiveK, WhitenedWahba
 from .strapdown import InertialIntegrator
 from .swing_bias import SwingBias
 
+_NONE_OBSERVED = np.empty(0), np.empty((0, 3))
+_NOTHING_TO_FOLD = np.empty((0, 4, 4)), np.empty(0)
+for _array in (*_NONE_OBSERVED, *_NOTHING_TO_FOLD):
+    _array.flags.writeable = False
+
 
 @dataclass(frozen=True, slots=True)
 class AttitudeSolution:
@@ -77,7 +82,7 @@ class InertialCoarseAlignment:
         self.unaided_observations = 0        # due without aid after it had started: a dropout
         self.aid_started = False
         self._aid_epoch = -1.0   # the aiding epoch of the last observation
-        self.observed = np.empty(0), np.empty((0, 3))
+        self.observed = _NONE_OBSERVED
         """The last :meth:`observe`'s observations: elapsed time (M,) s and α (M, 3) m/s as the solver takes it (b0
         axes, the swing-bias term removed): what the fixed-base residual's noise is measured on."""
 
@@ -88,8 +93,9 @@ class InertialCoarseAlignment:
     def update_block(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> None:
         """N ≥ 1 consecutive samples: times t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s."""
         elapsed, q_b_b0, alpha = self.integrate(t, dtheta, dv)
-        _, dK, trace_R = self.observe(elapsed, q_b_b0, alpha)
-        self.solver.fold(dK, trace_R)
+        due, dK, trace_R = self.observe(elapsed, q_b_b0, alpha)
+        if len(due):
+            self.solver.fold(dK, trace_R)
 
     def integrate(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
                   block_samples: int | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -113,7 +119,8 @@ class InertialCoarseAlignment:
         first usable value (a receiver before its first fix), as unaided after it. ``aid_epoch`` (N,): the number
         of the newest aiding epoch at or before each sample; an observation due before a newer epoch
         than the last observation's is skipped (not counted): an aid slower than the observations
-        gives one observation per epoch, not several interpolated from the same two.
+        gives one observation per epoch, not several interpolated from the same two. With none due the prepared
+        arrays are empty placeholders that no fold is given.
         """
         # observation k is due at k·interval; a sample within half a period of it takes it
         counts = np.floor((elapsed_s + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
@@ -132,6 +139,9 @@ class InertialCoarseAlignment:
                 epoch = aid_epoch[due]
                 due = due[np.diff(epoch, prepend=self._aid_epoch) > 0.0]
                 self._aid_epoch = max(self._aid_epoch, float(epoch[-1])) if len(epoch) else self._aid_epoch
+        if len(due) == 0:   # most calls of the live path: numpy's per-call cost on empty arrays is skipped
+            self.observed = _NONE_OBSERVED
+            return due, *_NOTHING_TO_FOLD
         alpha_due = alpha[due]
         if self.swing_bias is not None:
             alpha_due = self.swing_bias.correct(elapsed_s[due], alpha_due, q_b_b0[due])

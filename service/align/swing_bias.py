@@ -31,14 +31,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .conventions import EYE3, cross, dcm_from_quat
-from .earth import earth_turn_integrals
+from ._kernels import earth_axis, swing_corrected, swing_normal_equations
 
 N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
-RIDGE = 1e-12   # on the equilibrated normal matrix: keeps the first, rank-deficient solves finite
-_RIDGE_I = RIDGE * np.eye(N_PARAMS)
-_RIDGE_I.flags.writeable = False
-_STEP_ROWS = EYE3[None, :, None, :]   # broadcasts each basis increment ΔP_i onto its I block of the design rows
+RIDGE = 1e-12   # on the equilibrated normal matrix: keeps the first, rank-deficient solves finite (_kernels.pyx)
 
 
 class SwingBias:
@@ -73,70 +69,23 @@ class SwingBias:
         quaternions (M, 4): fold each into the fit, then return it with D(t)∇̂ removed (the fit up to it).
 
         All M observations at once: running sums (sequential, as one at a time would add them) and a stack
-        of solves, so the bits do not depend on how the observations are grouped.
+        of solves, so the bits do not depend on how the observations are grouped. The sums and the correction are
+        compiled (_kernels.pyx: the trapezoid M(t), the weighted normal equations of the increments, equilibrated
+        with the ridge; then D(t)∇̂), the solve is numpy's.
         """
         if len(elapsed_s) == 0:
             return alpha.copy()
-        C = dcm_from_quat(q_b_b0)
-        basis = earth_turn_integrals(elapsed_s)
         t_last, basis_last, alpha_last, C_last, M_last = self._last
-        dt = np.diff(elapsed_s, prepend=t_last)
-        dM = 0.5 * dt[:, None, None] * (np.concatenate((C_last[None], C[:-1])) + C)
-        M = _running_sum(M_last, dM)
-        # the rows of each increment's design matrix [ΔP1 I, ΔP2 I, ΔP3 I, ΔM] (M, 3, 12)
-        step = np.diff(basis, axis=0, prepend=basis_last[None])
-        X = np.concatenate((step[:, None, :, None] * _STEP_ROWS, dM[:, :, None, :]),
-                           axis=2).reshape(-1, 3, N_PARAMS)
-        dalpha = np.diff(alpha, axis=0, prepend=alpha_last[None])
-        weight = 1.0 / np.maximum(self._vrw2 * dt, 1e-300)   # observations are strictly later than the last
-        XtX = sum(X[:, r, :, None] * X[:, r, None, :] for r in range(3))
-        Xtz = sum(X[:, r, :] * dalpha[:, r, None] for r in range(3))
-        normal = _running_sum(self.normal, weight[:, None, None] * XtX)
-        rhs = _running_sum(self.rhs, weight[:, None] * Xtz)
-        self.normal, self.rhs = normal[-1], rhs[-1]
-        self._last = (float(elapsed_s[-1]), basis[-1], alpha[-1].copy(), C[-1], M[-1])
-        params = _solve(normal, rhs)
+        scaled, scaled_rhs, scale, M, basis, C, self.normal, self.rhs = swing_normal_equations(
+            elapsed_s, q_b_b0, alpha, self._vrw2, t_last, basis_last, alpha_last, C_last, M_last, self.normal,
+            self.rhs)
+        self._last = (float(elapsed_s[-1]), basis[-1], alpha[-1].copy(), C, M[-1])
+        # the one step left to numpy: LAPACK's solve, whose bits a hand-written elimination would not repeat
+        params = scale * np.linalg.solve(scaled, scaled_rhs[:, :, None])[:, :, 0]
         self.params = params[-1]
-        return alpha - _swing_term(M, basis, _earth_axis(params, self._lat_sign), params[:, 9:])
+        return swing_corrected(alpha, M, basis, params, self._lat_sign)
 
     def earth_axis_b0(self) -> np.ndarray | None:
         """The Earth axis in b0 axes, w = C_{n0}^{b0} u (unit), from the fit: c = w × b; None before a fit."""
-        w = _earth_axis(self.params[None], self._lat_sign)[0]
+        w = earth_axis(self.params, self._lat_sign)
         return None if not w.any() else w
-
-
-def _solve(normal: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """The parameters (K, 12) of K normal systems (K, 12, 12), (K, 12), equilibrated (the unknowns' scales differ by
-    orders of magnitude) with a ridge that keeps the first, rank-deficient ones finite."""
-    scale = 1.0 / np.sqrt(np.maximum(np.diagonal(normal, axis1=1, axis2=2), 1e-300))
-    scaled = normal * scale[:, :, None] * scale[:, None, :] + _RIDGE_I
-    return scale * np.linalg.solve(scaled, (scale * rhs)[:, :, None])[:, :, 0]
-
-
-def _running_sum(start: np.ndarray, steps: np.ndarray) -> np.ndarray:
-    """start + steps[0], start + steps[0] + steps[1], …: added one at a time, left to right."""
-    if len(steps) == 1:   # the live path's one observation: the same single addition, without cumsum's cost
-        return (start + steps[0])[None]
-    return np.cumsum(np.concatenate((start[None], steps)), axis=0)[1:]
-
-
-def _earth_axis(params: np.ndarray, lat_sign: float) -> np.ndarray:
-    """w (…, 3) from the fitted b, c of ``params`` (…, 12): c = w × b, |w| = 1, the sign of the latitude settling
-    its part along b. 0 where there is no fit (b = 0, or a fit of data that leave w undefined)."""
-    b, c = params[..., 0:3], params[..., 3:6]
-    b2 = np.sum(b * b, axis=-1, keepdims=True)
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        along = lat_sign * np.sqrt(np.maximum(0.0, 1.0 - np.sum(c * c, axis=-1, keepdims=True) / b2))
-        w = cross(b, c) / b2 + along * b / np.sqrt(b2)
-        w = w / np.sqrt(np.sum(w * w, axis=-1, keepdims=True))
-    return np.where(np.isfinite(w).all(axis=-1, keepdims=True), w, 0.0)
-
-
-def _swing_term(M: np.ndarray, basis: np.ndarray, w: np.ndarray, nabla: np.ndarray) -> np.ndarray:
-    """D(t)∇̂ = M(t)∇̂ − E_b0(t)∇̂ (…, 3), with E_b0(t) = C_{n0}^{b0} E(t) C_{b0}^{n0} = P1 I + P2 [w×] + P3 w wᵀ the part
-    of M(t) a static base has (w = 0 before a fit: ∇̂ is 0 then as well). Written out
-    elementwise, not as matmuls: the same bits whatever the number of observations."""
-    n0, n1, n2 = nabla[:, 0, None], nabla[:, 1, None], nabla[:, 2, None]
-    along = w[:, 0, None] * n0 + w[:, 1, None] * n1 + w[:, 2, None] * n2
-    static = basis[:, 0, None] * nabla + basis[:, 1, None] * cross(w, nabla) + basis[:, 2, None] * (along * w)
-    return M[:, :, 0] * n0 + M[:, :, 1] * n1 + M[:, :, 2] * n2 - static
