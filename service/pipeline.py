@@ -14,7 +14,7 @@ import numpy as np
 
 from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
-from .align.coarse import AttitudeSolution, InertialCoarseAlignment
+from .align.coarse import AttitudeSolution, InertialCoarseAlignment, stepped_up
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.disturbance import MotionMonitor
 from .align.earth import Site
@@ -255,7 +255,7 @@ class AlignmentPipeline:
         """
         pending = self._pending[:self._n_pending]
         counts = self._epoch_counts(pending[:, 0])
-        new = np.flatnonzero((np.diff(counts, prepend=self._epoch_count) > 0) & (counts > self._emitted_count))
+        new = np.flatnonzero(stepped_up(counts, self._epoch_count) & (counts > self._emitted_count))
         if len(new) == 0:
             return
         scratch = self.coarse.scratch()
@@ -283,7 +283,7 @@ class AlignmentPipeline:
         due, dK, trace_R = self.coarse.observe(elapsed, q_b_b0, alpha, *self._coarse_aid(aid, aid_epoch))
         observed_s, observed_alpha = self.coarse.observed
         counts = self._epoch_counts(t)
-        epochs = np.flatnonzero(np.diff(counts, prepend=self._epoch_count) > 0)
+        epochs = np.flatnonzero(stepped_up(counts, self._epoch_count))
         self._epoch_count = int(counts[-1])
         solver = self.coarse.solver
         # per block: the observations to fold by its end, and its epochs with those to fold by each (one search each

@@ -445,3 +445,57 @@ def swing_corrected(const double[:, :] alpha, const double[:, :, :] M, const dou
             term = M[k, i, 0] * nabla[0] + M[k, i, 1] * nabla[1] + M[k, i, 2] * nabla[2] - static
             o[k, i] = alpha[k, i] - term
     return out
+
+
+def beta_fixed_many(double lat, double gravity, const double[:] elapsed_s):
+    """β (M, 3) m/s at M times (s since the start): earth.beta_fixed of an array, the same bits."""
+    cdef long n = elapsed_s.shape[0], k
+    out = np.empty((n, 3))
+    cdef double[:, ::1] o = out
+    for k in range(n):
+        _beta_fixed(lat, gravity, elapsed_s[k], &o[k, 0])
+    return out
+
+
+cdef inline double _einsum_dot3(const double* a) noexcept nogil:
+    """numpy.einsum("mi,mi->m") of one row of 3: its two-lane SIMD loop adds the squares as (a0² + a2²) + a1²."""
+    return a[0] * a[0] + a[2] * a[2] + a[1] * a[1]
+
+
+def recursive_k_prepare(const double[:, :] b, const double[:, :] r, const double[:] mu):
+    """RecursiveK.prepare of M pairs (b, r (M, 3), any length; μ (M,) rad²): the pairs normalised, δK (M, 4, 4) =
+    solvers.delta_K and tr R (M,) = the trace of solvers.request_noise, each operation in numpy's order: the same
+    bits."""
+    cdef long n = b.shape[0], k
+    cdef int i, j
+    cdef double bu[3]
+    cdef double ru[3]
+    cdef double B[9]
+    cdef double z[3]
+    cdef double norm_b, norm_r, sigma, scale
+    dK_out = np.empty((n, 4, 4))
+    trace_out = np.empty(n)
+    cdef double[:, :, ::1] dK = dK_out
+    cdef double[::1] trace_R = trace_out
+    for k in range(n):
+        for i in range(3):
+            bu[i], ru[i] = b[k, i], r[k, i]
+        norm_b, norm_r = sqrt(_einsum_dot3(bu)), sqrt(_einsum_dot3(ru))
+        for i in range(3):
+            bu[i], ru[i] = bu[i] / norm_b, ru[i] / norm_r
+        scale = mu[k] * (3.0 - _einsum_dot3(bu)) * _einsum_dot3(ru)
+        trace_R[k] = scale * 1.0 + scale * 1.0 + scale * 1.0 + scale * 1.0   # tr(scale I₄), numpy's terms
+        for i in range(3):
+            for j in range(3):
+                B[3 * i + j] = bu[i] * ru[j]
+        # solvers.davenport: [[B + Bᵀ − σ I, z], [zᵀ, σ]], σ = tr B
+        sigma = B[0] + B[4] + B[8]
+        for i in range(3):
+            for j in range(3):
+                dK[k, i, j] = B[3 * i + j] + B[3 * j + i] - sigma * (1.0 if i == j else 0.0)
+        z[0], z[1], z[2] = B[5] - B[7], B[6] - B[2], B[1] - B[3]
+        for i in range(3):
+            dK[k, i, 3] = z[i]
+            dK[k, 3, i] = z[i]
+        dK[k, 3, 3] = sigma
+    return dK_out, trace_out

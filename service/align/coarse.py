@@ -25,6 +25,28 @@ for _array in (*_NONE_OBSERVED, *_NOTHING_TO_FOLD):
     _array.flags.writeable = False
 
 
+def stepped_up(values: np.ndarray, before: float) -> np.ndarray:
+    """Where each of ``values`` (N,) exceeds the one before it (the first: ``before``): ``np.diff(values,
+    prepend=before) > 0`` without diff's cost on the live path's few samples (the same for integers and for floats,
+    NaN included: never)."""
+    up = np.empty(len(values), dtype=bool)
+    if len(values):
+        up[0] = values[0] > before
+        np.greater(values[1:], values[:-1], out=up[1:])
+    return up
+
+
+def _shallow_copy(obj: object) -> object:
+    """``copy.copy`` of one of the stage's parts: its own ``__copy__`` if it has one, else a new object with a copy
+    of its attributes (what copy.copy does for them, without its generic protocol: the live path takes a scratch
+    per record)."""
+    if hasattr(type(obj), "__copy__"):
+        return copy.copy(obj)
+    clone = object.__new__(type(obj))
+    clone.__dict__.update(obj.__dict__)
+    return clone
+
+
 @dataclass(frozen=True, slots=True)
 class AttitudeSolution:
     """The attitude estimate at one instant.
@@ -124,7 +146,7 @@ class InertialCoarseAlignment:
         """
         # observation k is due at k·interval; a sample within half a period of it takes it
         counts = np.floor((elapsed_s + 0.5 * self.sample_period_s) / self.obs_interval_s).astype(np.int64)
-        due = np.flatnonzero(np.diff(counts, prepend=self._obs_count) > 0)
+        due = np.flatnonzero(stepped_up(counts, self._obs_count))
         self._obs_count = int(counts[-1])
         if aid is not None:
             usable = np.isfinite(aid[due]).all(axis=1)
@@ -137,7 +159,7 @@ class InertialCoarseAlignment:
             due = due[usable]
             if aid_epoch is not None:
                 epoch = aid_epoch[due]
-                due = due[np.diff(epoch, prepend=self._aid_epoch) > 0.0]
+                due = due[stepped_up(epoch, self._aid_epoch)]
                 self._aid_epoch = max(self._aid_epoch, float(epoch[-1])) if len(epoch) else self._aid_epoch
         if len(due) == 0:   # most calls of the live path: numpy's per-call cost on empty arrays is skipped
             self.observed = _NONE_OBSERVED
@@ -171,11 +193,11 @@ class InertialCoarseAlignment:
         ``integrate``, ``observe`` and the solver's ``fold`` assign new arrays rather than write into
         the old ones, so shallow copies of the object, its integrator and its solver are independent.
         """
-        clone = copy.copy(self)
-        clone.integrator = copy.copy(self.integrator)
-        clone.source = copy.copy(self.source)   # an aided source's store: the clone writes only past its end
-        clone.solver = copy.copy(self.solver)
-        clone.swing_bias = copy.copy(self.swing_bias)
+        clone = _shallow_copy(self)
+        clone.integrator = _shallow_copy(self.integrator)
+        clone.source = _shallow_copy(self.source)   # an aided source's store: the clone writes only past its end
+        clone.solver = _shallow_copy(self.solver)
+        clone.swing_bias = None if self.swing_bias is None else _shallow_copy(self.swing_bias)
         return clone
 
     @property

@@ -12,8 +12,8 @@ from typing import Protocol
 
 import numpy as np
 
-from ._kernels import C_n_n0_fixed_at
-from .earth import Site, beta_fixed
+from ._kernels import C_n_n0_fixed_at, beta_fixed_many
+from .earth import Site
 
 
 class ObservationSource(Protocol):
@@ -41,7 +41,7 @@ class FixedSiteSource:
 
     def vectors(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray, q_b_b0: np.ndarray,
                 aid: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        return alpha_b0, beta_fixed(self.site.lat, self._gravity, elapsed_s)
+        return alpha_b0, beta_fixed_many(self.site.lat, self._gravity, elapsed_s)   # compiled: beta_fixed's bits
 
     def C_n_n0(self, elapsed_s: float) -> np.ndarray:
         return C_n_n0_fixed_at(self.site.lat, float(elapsed_s))   # compiled: the same bits as C_n_n0_fixed

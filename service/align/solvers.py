@@ -94,6 +94,7 @@ class RecursiveK:
         self.trace_P = np.inf
         self.rho = 1.0
         self.n_obs = 0
+        self._q: np.ndarray | None = None   # the quaternion of K, once asked for (fold assigns None)
 
     def add(self, b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> None:
         """Fold in M single-vector observations in time order.
@@ -134,6 +135,7 @@ class RecursiveK:
                 m = m_new
             n += 1
         self.K, self.m, self.trace_P, self.n_obs, self.rho = K, m, trace_P, n, rho
+        self._q = None
 
     def _gain(self, m: float, trace_P: float, trace_R: float, n_before: int) -> float:
         if self.solver == "opreq":
@@ -143,10 +145,12 @@ class RecursiveK:
         return 1.0 / (n_before + 1.0)
 
     def quaternion(self) -> np.ndarray:
-        """Current estimate of C_b^n(0) as [w, x, y, z]; identity before any observation."""
-        if self.n_obs == 0:
-            return np.array([1.0, 0.0, 0.0, 0.0])
-        return quaternion_from_K(self.K)
+        """Current estimate of C_b^n(0) as [w, x, y, z] (read-only); identity before any observation. Solved once
+        per fold: every record, σ and check between two observations asks for the same K's."""
+        if self._q is None:
+            self._q = np.array([1.0, 0.0, 0.0, 0.0]) if self.n_obs == 0 else quaternion_from_K(self.K)
+            self._q.flags.writeable = False
+        return self._q
 
 
 class CentredWahba:

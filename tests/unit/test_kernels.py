@@ -16,7 +16,9 @@ import pytest
 from sinsalign.service.align._kernels import (
     C_n_n0_fixed_at,
     beta_fixed_at,
+    beta_fixed_many,
     horizontal_gained,
+    recursive_k_prepare,
     weighted_nonnegative_fit,
 )
 from sinsalign.service.align.conventions import dcm_from_euler
@@ -29,6 +31,7 @@ from sinsalign.service.align.noise_check import (
     STENCIL,
     NoiseMeter,
 )
+from sinsalign.service.align.solvers import delta_K, request_noise
 
 RNG = np.random.default_rng(27)
 # both branches of t − sin(Ωt)/Ω (its series below Ωt = 1e-3, about 14 s) and a day
@@ -40,6 +43,21 @@ def test_the_fixed_site_closed_forms_have_numpys_bits():
     for t, lat in zip(TIMES_S, LATS, strict=True):
         assert beta_fixed_at(lat, 9.79, t).tobytes() == beta_fixed(lat, 9.79, t).tobytes()
         assert C_n_n0_fixed_at(lat, t).tobytes() == C_n_n0_fixed(lat, t).tobytes()
+    assert beta_fixed_many(0.6, 9.79, TIMES_S).tobytes() == beta_fixed(0.6, 9.79, TIMES_S).tobytes()
+
+
+@pytest.mark.parametrize("M", [1, 2, 3, 500])
+def test_the_k_matrix_pairs_are_the_numpy_forms_to_the_bit(M):
+    """RecursiveK.prepare compiled: the normalised pairs' δK and tr R with numpy's bits (its einsum adds three squares
+    in its own order), for any number of pairs and vectors far from unit length."""
+    b = RNG.standard_normal((M, 3)) * RNG.uniform(1e-3, 1e3, (M, 1))
+    r = RNG.standard_normal((M, 3)) * RNG.uniform(1e-3, 1e3, (M, 1))
+    mu = RNG.uniform(1e-12, 1e-4, M)
+    dK, trace_R = recursive_k_prepare(b, r, mu)
+    b_unit = b / np.sqrt(np.einsum("mi,mi->m", b, b))[:, None]
+    r_unit = r / np.sqrt(np.einsum("mi,mi->m", r, r))[:, None]
+    assert dK.tobytes() == delta_K(b_unit, r_unit).tobytes()
+    assert trace_R.tobytes() == np.trace(request_noise(b_unit, r_unit, mu), axis1=1, axis2=2).tobytes()
 
 
 def test_the_velocity_gained_is_numpys_to_the_last_bits():
