@@ -27,6 +27,7 @@ import numpy as np
 from ..protocol.counters import Counters, count
 from ..protocol.imu_log import MAX_TIME_S
 from ..protocol.serial_frame import IMU_ROW_COLUMNS
+from ._gate import plain_rows, screen
 
 SAMPLE_COLUMNS = IMU_ROW_COLUMNS
 """The one row a decoded IMU sample travels in from every decoder to the pipeline: t (s), Δθ (3) rad, Δv (3) m/s,
@@ -88,12 +89,11 @@ class SampleGate:
             return segments
         block = samples[:, :7]
         flags = samples[:, 7:9].astype(np.int64)
-        dtheta_max, dv_max = np.abs(block[:, 1:4]).max(axis=1), np.abs(block[:, 4:7]).max(axis=1)
         # a time no clock reads; beyond the range, no sensor's value (a frame flagged saturated is the sensor at full
         # scale: a restart, below)
-        clockless = ~(np.abs(block[:, 0]) <= MAX_TIME_S)
-        out_of_range = ((dtheta_max > self.max_dtheta_rad) | (dv_max > self.max_dv_mps)) & (flags[:, 1] == 0)
-        breaks = np.flatnonzero(~self._plain(block[:, 0], clockless | out_of_range | (flags[:, 1] != 0)))
+        dtheta_max, dv_max, clockless, out_of_range, refused = screen(block, flags[:, 1], self.max_dtheta_rad,
+                                                                       self.max_dv_mps, MAX_TIME_S)
+        breaks = np.flatnonzero(~self._plain(block[:, 0], refused))
         last_here = -1   # the index of the last row this call admitted (-1: none yet)
         k = 0
         while k < len(block):
@@ -142,13 +142,8 @@ class SampleGate:
     def _plain(self, t: np.ndarray, refused: np.ndarray) -> np.ndarray:
         """Whether each sample, if the one before it (``_last`` for the first) is the last admitted, is admitted as
         it is: not ``refused`` (implausible, saturated), after that one, and not after a gap."""
-        previous = np.concatenate(([-np.inf if self._last is None else self._last[0]], t[:-1]))
-        with np.errstate(invalid="ignore", over="ignore"):   # a time beyond any clock: refused already
-            missing = np.round((t - previous) / (1.0 / self.rate_hz)) - 1.0
-        plain = ~refused & (t > previous) & ~(missing > 0.0)
-        if self._last is None:
-            plain[0] = not refused[0]
-        return plain
+        return plain_rows(t, refused.view(np.uint8), np.nan if self._last is None else self._last[0],
+                          1.0 / self.rate_hz)
 
     def _hold_behind(self, row: np.ndarray) -> bool:
         """Hold a sample that does not follow the last admitted one; True once the held ones show a clock that went
