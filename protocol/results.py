@@ -52,7 +52,7 @@ class ResultRecord:
     @property
     def finite(self) -> bool:
         """Every number is finite (trace_P excepted: infinite before the first observation, carried as null)."""
-        return not _non_finite(self.wire_dict())
+        return all(_finite(getattr(self, name)) for name in self.__slots__ if name != "trace_P")
 
     def to_json(self) -> str:
         """One line of strict JSON. A number that is not finite (trace_P aside, carried as null) is a fault upstream;
@@ -70,8 +70,8 @@ def _non_finite(wire: dict[str, Any]) -> list[str]:
 
 
 def _finite(value: Any) -> bool:
-    """Whether a wire field holds finite numbers only (texts, booleans and null hold none)."""
-    if isinstance(value, list):
+    """Whether a field (or its wire form) holds finite numbers only (texts, booleans and null hold none)."""
+    if isinstance(value, list | tuple):
         return all(_finite(v) for v in value)
     return not isinstance(value, float) or math.isfinite(value)
 

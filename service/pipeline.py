@@ -258,6 +258,13 @@ class AlignmentPipeline:
         new = np.flatnonzero(stepped_up(counts, self._epoch_count) & (counts > self._emitted_count))
         if len(new) == 0:
             return
+        if self.coarse.unchanged_until(float(pending[-1, 0])):   # no observation among them: no scratch copy needed
+            q_b_b0 = self.coarse.integrator.ahead(pending[:, 1:4], pending[:, 4:7])
+            for j in new.tolist():
+                records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(pending[j, 0]),
+                                            q_b_b0[j], self.coarse))
+            self._emitted_count = int(counts[new[-1]])
+            return
         scratch = self.coarse.scratch()
         elapsed, q_b_b0, alpha = scratch.integrate(pending[:, 0], pending[:, 1:4], pending[:, 4:7])
         due, dK, trace_R = scratch.observe(elapsed, q_b_b0, alpha, *self._coarse_aid(self._aid(pending),

@@ -24,7 +24,7 @@ class ZenohOutputs:
     def __init__(self, session: zenoh.Session, keys: UnitKeys, state: Callable[[], dict]) -> None:
         self.keys = keys
         self._state = state
-        self._attitude = session.declare_publisher(keys.attitude, encoding=MSGPACK, express=True)
+        self._attitude = session.declare_publisher(keys.attitude, encoding=MSGPACK)
         self._status = session.declare_publisher(keys.status, encoding=MSGPACK)
         self._token = session.liveliness().declare_token(keys.alive)
         self._queryable = session.declare_queryable(keys.state, self._on_query)

@@ -8,6 +8,7 @@ vector pair from the observation source and fold it into the recursive K-matrix 
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -186,6 +187,18 @@ class InertialCoarseAlignment:
     def carry_aid_start(self, previous: InertialCoarseAlignment) -> None:
         """An aid that had begun for ``previous`` (the stage this one replaces) has begun here too."""
         self.aid_started = self.aid_started or previous.aid_started
+
+    follows_aid = False
+    """Whether :meth:`observe` changes the stage between its observations (an aided source that follows its aid at
+    every sample): then no record ahead of the integrated samples can do without a scratch copy (:meth:`scratch`)."""
+
+    def unchanged_until(self, t: float) -> bool:
+        """Whether observing the samples after the integrated ones up to time ``t`` (s, input time base) would leave
+        the stage as it is: none due by then (the count of :meth:`observe`, the same arithmetic) and no aid followed
+        between observations. A record at such a sample takes this stage with the integrator run ahead."""
+        if self.t0 is None or self.follows_aid:
+            return False
+        return math.floor((t - self.t0 + 0.5 * self.sample_period_s) / self.obs_interval_s) <= self._obs_count
 
     def scratch(self) -> InertialCoarseAlignment:
         """A copy to run ahead on and throw away: the state the updates replace is copied, nothing else.

@@ -307,6 +307,8 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
     weighted by the source's stated noise. With :attr:`body_velocity` each fix gives a second pair, folded after
     its VIF or PIF pair (``n_obs`` counts both)."""
 
+    follows_aid = True   # its source follows the aid at every sample (positions, integrals)
+
     source: GnssSource
     body_velocity: BodyVelocityPairs | None = None
 

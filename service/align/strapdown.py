@@ -68,12 +68,21 @@ class InertialIntegrator:
         q_b_b0 : (N, 4) attitude C_{b(t_k)}^{b0} at the end of every sample.
         alpha_b0 : (N, 3) α(t_k) in b0 axes (m/s) at the end of every sample.
         """
+        state, q, alpha = self._run(dtheta, dv, block_samples)
+        self.q_b_b0, self.alpha_b0, self._dtheta_prev, self._dv_prev = state
+        return q, alpha
+
+    def ahead(self, dtheta: np.ndarray, dv: np.ndarray) -> np.ndarray:
+        """C_{b(t_k)}^{b0} (N, 4) at the ends of N samples after the integrated ones, as one block, the state left as
+        it is: the same bits as integrating them (a block's first samples alone are as within the whole block)."""
+        return self._run(dtheta, dv, None)[1]
+
+    def _run(self, dtheta: np.ndarray, dv: np.ndarray, block_samples: int | None
+             ) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray]:
+        """(the state after the samples, C_b^b0 (N, 4), α (N, 3)), the state's own arrays untouched: new ones are
+        written, so a shallow copy of the integrator (the pipeline's scratch) runs ahead on its own."""
         dtheta = np.ascontiguousarray(dtheta, dtype=float).reshape(-1, 3)
         dv = np.ascontiguousarray(dv, dtype=float).reshape(-1, 3)
-        # new state arrays, the old ones left as they were: a shallow copy of the integrator (the pipeline's scratch)
-        # runs ahead on its own
-        self.q_b_b0, self.alpha_b0 = self.q_b_b0.copy(), self.alpha_b0.copy()
-        self._dtheta_prev, self._dv_prev = self._dtheta_prev.copy(), self._dv_prev.copy()
-        return integrate_blocks(self.q_b_b0, self.alpha_b0, self._dtheta_prev, self._dv_prev, dtheta, dv,
-                                block_samples or len(dtheta))
-
+        state = (self.q_b_b0.copy(), self.alpha_b0.copy(), self._dtheta_prev.copy(), self._dv_prev.copy())
+        q, alpha = integrate_blocks(*state, dtheta, dv, block_samples or len(dtheta))
+        return state, q, alpha

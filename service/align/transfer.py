@@ -141,6 +141,8 @@ class MasterSource:
 class MasterCoarseAlignment(InertialCoarseAlignment):
     """Phase 1: the grouped solver's estimate is the mounting M; the attitude is X = P_f M S_fᵀ (C_bs0^{n0})."""
 
+    follows_aid = True   # its source follows the aid at every sample (positions, integrals)
+
     source: MasterSource
 
     def observe(self, elapsed_s: np.ndarray, q_b_b0: np.ndarray, alpha: np.ndarray, aid: np.ndarray | None = None,
