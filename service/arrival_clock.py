@@ -37,7 +37,7 @@ class ArrivalClock:
         clock)."""
         if len(t_source) == 0:
             return
-        lead = float(np.max(t_source)) - arrival_s
+        lead = float(t_source.max()) - arrival_s
         if self.offset_s is None:
             self.offset_s = lead
         else:

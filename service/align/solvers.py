@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ._attitude import quaternion_from_K
+from ._kernels import recursive_k_prepare
 from .conventions import dcm_from_quat, skew
 
 if TYPE_CHECKING:
@@ -108,12 +109,10 @@ class RecursiveK:
     def prepare(b: np.ndarray, r: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(δK (M, 4, 4), tr R (M,)) of M observations, for :meth:`fold` (vectorised).
 
-        b, r need not be unit vectors: each pair is normalised here (a unit weight each).
+        b, r need not be unit vectors: each pair is normalised here (a unit weight each). Compiled (_kernels.pyx:
+        the normalisation, :func:`delta_K` and the trace of :func:`request_noise`, the same bits).
         """
-        b = b / np.sqrt(np.einsum("mi,mi->m", b, b))[:, None]
-        r = r / np.sqrt(np.einsum("mi,mi->m", r, r))[:, None]
-        trace_R = np.trace(request_noise(b, r, np.asarray(mu, dtype=float)), axis1=1, axis2=2)
-        return delta_K(b, r), trace_R
+        return recursive_k_prepare(b, r, np.asarray(mu, dtype=float).reshape(-1))
 
     def fold(self, dK: np.ndarray, trace_R: np.ndarray) -> None:
         """Blend prepared observations into K one after the other: K ← a K + c δK.
