@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import itertools
 from bisect import bisect_right
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -46,6 +47,9 @@ from ._compass import compass_step
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
+
+F_CACHE_SIZE = 256
+"""Transition matrices kept (each an 8×8 matrix exponential of one set of gains, sign and step length)."""
 
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
@@ -172,7 +176,7 @@ class CompassLoops:
         self.omega_cos = OMEGA_IE * np.cos(site.lat)
         self.omega_sin = OMEGA_IE * np.sin(site.lat)
         self.omega_ie_n = site.omega_ie_n
-        self._F_cache: dict[tuple, np.ndarray] = {}
+        self._F_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()   # least recently used first
         self._gains_last: tuple[float, tuple] = (np.nan, ((), None))
         self._Q_cache: dict[tuple, np.ndarray] = {}
 
@@ -253,9 +257,14 @@ class CompassLoops:
         key = (level, azimuth, earth_sign, dt_s)
         F = self._F_cache.get(key)
         if F is None:
-            if len(self._F_cache) > 64:   # the schedule interpolates: keep the cache small
-                self._F_cache.clear()
+            # the schedule interpolates, so a live step on a ramp adds a key each time: the least recently used go,
+            # not the stored-data passes' few (their gains held, each pass direction a sign), which a cleared cache
+            # made recompute a matrix exponential per step
+            if len(self._F_cache) >= F_CACHE_SIZE:
+                self._F_cache.popitem(last=False)
             F = self._F_cache[key] = expm(self.error_dynamics(level, azimuth, earth_sign) * dt_s)
+        else:
+            self._F_cache.move_to_end(key)
         return F
 
     def error_dynamics(self, level: tuple, azimuth: tuple | None, earth_sign: float = 1.0) -> np.ndarray:
