@@ -116,9 +116,10 @@ class Daemon:
         samples = self._read_inputs()
         if len(samples):
             self._last_input = time.monotonic()
-        records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs())
+        records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs(), defer_control=True)
         for output in self._record_outputs:
             output.records(records)
+        self.ingest.settle()   # the control step the records did not wait for
         if records:
             self.last_record = records[-1]
         self.counters.records_published += len(records)

@@ -97,6 +97,7 @@ class Ingest:
         self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None,
                                                  "aiding": None, "input": None}
         self._record_restart = record_restart
+        self._defer_control = False   # this pass's (feed_samples)
 
     def _new_pipeline(self) -> AlignmentPipeline:
         return build_pipeline(self.config, self.site, self.config.imu.rate_hz, aids=self.aid_kinds, live=True)
@@ -162,13 +163,15 @@ class Ingest:
         """Serial bytes as a read gave them (any piece of the stream) → the records they complete."""
         return self.feed_samples(self.decode_serial(data))
 
-    def feed_samples(self, samples: np.ndarray,
-                     epochs: Iterable[tuple[str, messages.AidingSample]] = ()) -> list[ResultRecord]:
+    def feed_samples(self, samples: np.ndarray, epochs: Iterable[tuple[str, messages.AidingSample]] = (),
+                     defer_control: bool = False) -> list[ResultRecord]:
         """Decoded samples of one pass (N, :data:`~.sample_gate.SAMPLE_COLUMNS`), in arrival order, and the aiding
         ``epochs`` that came with them from other than the serial port (after the serial ones, into their tracks) →
         the records they complete. Without samples, aiding that came after the last ones lets those waiting for it
-        go."""
+        go. ``defer_control``: a control step that ends the pass is left for :meth:`settle` (the records go out
+        first; the next pass settles it anyway)."""
         self._take_aiding_epochs(epochs)
+        self._defer_control = defer_control
         if len(samples) == 0:
             return self._feed(None) if self._wait is not None and self._wait.held else []
         records: list[ResultRecord] = []
@@ -185,12 +188,23 @@ class Ingest:
             if self._record_rows is not None:
                 self._record_rows(segment.rows)
             records += self._feed(segment.rows)
+        self._report_events()
+        return records
+
+    def settle(self) -> None:
+        """The control step a pass with ``defer_control`` left, with its events (a failure restarts the alignment,
+        marked in the recording)."""
+        failure = self.alignment.settle()
+        if failure is not None and self._record_restart is not None:
+            self._record_restart(failure)
+        self._report_events()
+
+    def _report_events(self) -> None:
         for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance),
                              ("alignment", self.pipeline.last_notice), ("aiding", self.aid_stopped_text())):
             if text and text != self._reported[source]:   # report each new event once
                 self._reported[source] = text
                 self._report(text)
-        return records
 
     def _feed(self, rows: np.ndarray | None, everything: bool = False) -> list[ResultRecord]:
         """Samples (N, 7) into the pipeline; in the aided mode they wait for their aiding first."""
@@ -206,7 +220,7 @@ class Ingest:
     def _process(self, rows: np.ndarray, aid: np.ndarray | None) -> list[ResultRecord]:
         """The pipeline's records of ``rows`` (N, 7) with their aiding; a failed step restarts it, counted, and is
         marked in the recording after these rows."""
-        records, failure = self.alignment.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7], aid)
+        records, failure = self.alignment.process(rows[:, 0], rows[:, 1:4], rows[:, 4:7], aid, self._defer_control)
         if failure is not None and self._record_restart is not None:
             self._record_restart(failure)
         return records

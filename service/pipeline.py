@@ -83,7 +83,7 @@ class AlignmentPipeline:
     counted from the first sample; an incomplete block waits for its last sample. Every block
     therefore sees the same arithmetic whether the samples come one at a time (daemon) or in
     large chunks (replay), and the results are bit-identical. A record whose epoch sample waits in
-    an incomplete block is computed at once on a scratch copy (same bits, see
+    an incomplete block is computed at once, from the integrator run ahead or on a scratch copy (same bits, see
     :meth:`_emit_from_pending`), so every record leaves with the call that brought its sample.
 
     Parameters
@@ -137,6 +137,8 @@ class AlignmentPipeline:
         self._n_pending = 0
         self._epoch_count: int | None = None
         self._emitted_count = -(2**62)
+        self._defer_control = False
+        self._deferred: tuple | None = None   # a block's tail left by process(defer_control=True): see settle()
 
     def _start_estimators(self, t_start: float | None = None) -> None:
         """Fresh coarse and fine stages, from the start of the data or from ``t_start`` (a restart)."""
@@ -214,14 +216,21 @@ class AlignmentPipeline:
         return np.floor((t + 0.5 * self.sample_period_s) / self.period_s).astype(np.int64)
 
     def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
-                aid: np.ndarray | None = None) -> list[ResultRecord]:
+                aid: np.ndarray | None = None, defer_control: bool = False) -> list[ResultRecord]:
         """Feed N samples (t (N,) s, Δθ (N, 3) rad, Δv (N, 3) m/s, and for an aided pipeline the aiding at the
         samples, aid (N, Σ(1 + width) over :attr:`aid_kinds`): per kind the number of its newest epoch at or before
         the sample, then its values, NaN where none (:meth:`AidingTrack.aid_at`)); return the records they
-        complete."""
+        complete.
+
+        ``defer_control``: when the samples end on a complete block, its noise measurement and control step (which
+        no record of the block depends on) are left for :meth:`settle`, so the caller can publish the records
+        first; the next call settles before anything else, so the results are the same bits either way."""
+        self.settle()
         t = np.asarray(t, dtype=float).reshape(-1)
         if len(t) == 0:
             return []
+        # only a call that ends on a complete block defers: its tail then refers to no sample the next one writes over
+        self._defer_control = defer_control and (self._n_pending + len(t)) % self.block_samples == 0
         columns = [t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))]
         if self.aid_width:
             columns.append(np.reshape(aid, (-1, self._pending.shape[1] - AID_COLUMN)))
@@ -248,7 +257,9 @@ class AlignmentPipeline:
         return records
 
     def _emit_from_pending(self, records: list[ResultRecord]) -> None:
-        """Records whose epoch sample waits in the incomplete block, computed on a scratch copy.
+        """Records whose epoch sample waits in the incomplete block: from the integrator run ahead over the pending
+        samples when observing them would leave the coarse stage as it is, else on a scratch copy of it that
+        integrates and observes them.
 
         The scan and the fold give a prefix of a block the same bits as the whole block, so these
         records equal what the complete block would emit; the block then skips them.
@@ -276,8 +287,24 @@ class AlignmentPipeline:
                                         scratch))
         self._emitted_count = int(counts[new[-1]])
 
+    def settle(self) -> None:
+        """Run the noise measurement and control step a call with ``defer_control`` left (none: nothing to do)."""
+        if self._deferred is None:
+            return
+        (observed_s, observed_alpha), step = self._deferred
+        self._deferred = None
+        self._finish_block(observed_s, observed_alpha, *step)
+        self._restarted = False   # after a chunk's last block: the new estimators start with the next samples
+
+    def _finish_block(self, observed_s: np.ndarray, observed_alpha: np.ndarray, *step: object) -> None:
+        """A block's tail after its records: the noise meter on its observations, then the control step."""
+        if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
+            self._measure_noise(observed_s, observed_alpha)
+        self._control_step(*step)
+
     def _process_blocks(self, samples: np.ndarray, records: list[ResultRecord]) -> None:
         """Whole blocks (:meth:`_process_block_rows`); then their last Δθ is the one before the next sample's."""
+        self.settle()
         self._process_block_rows(samples, records)
         self._dtheta_last = samples[-1, 1:4].copy()
 
@@ -310,10 +337,13 @@ class AlignmentPipeline:
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
             folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
-            if self.noise is not None:   # after the block's records: a record in an incomplete block sees the same
-                self._measure_noise(observed_s[measured:folded], observed_alpha[measured:folded])
-            self._control_step(float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
-                               None if aid is None else aid[end], None if aid_epoch is None else aid_epoch[end])
+            observed = observed_s[measured:folded], observed_alpha[measured:folded]
+            step = (float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end], None if aid is None else aid[end],
+                    None if aid_epoch is None else aid_epoch[end])
+            if self._defer_control and end + 1 == len(t):
+                self._deferred = observed, step   # the chunk's last block: its records leave first
+                return
+            self._finish_block(*observed, *step)
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):

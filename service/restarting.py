@@ -7,6 +7,7 @@ lines, which an IMU log's reader hands over with the samples after them), and a 
 """
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Callable
 
@@ -37,6 +38,8 @@ class RestartingPipeline:
 
     def restart(self) -> None:
         """A fresh pipeline: an aid that had begun stays begun (an observation without it is a dropout, not a wait)."""
+        with contextlib.suppress(Exception):   # replaced anyway: only the counts of a step it left carry on
+            self.pipeline.settle()
         pipeline = self._make()
         pipeline.carry_aid_start(self.pipeline)
         with self._lock:
@@ -44,24 +47,37 @@ class RestartingPipeline:
             self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
             self.pipeline = pipeline
 
-    def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray,
-                aid: np.ndarray | None = None) -> tuple[list[ResultRecord], str | None]:
+    def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, aid: np.ndarray | None = None,
+                defer_control: bool = False) -> tuple[list[ResultRecord], str | None]:
         """The records of these samples (:meth:`AlignmentPipeline.process`), and None; or, if the estimator fails on
         them (raises, or puts out a non-finite number), no records and why, the pipeline started over from the next
         samples: its state cannot be trusted, and a service that published nothing after one bad step would be down
         for good."""
         try:
-            records = self.pipeline.process(t, dtheta, dv, aid)
+            records = self.pipeline.process(t, dtheta, dv, aid, defer_control)
             if all(r.finite for r in records):
                 return records, None
             failure = "a non-finite attitude or σ"
         except Exception as exc:   # whatever the estimator raised, the alignment goes on
             failure = f"{type(exc).__name__}: {str(exc)[:80]}"
+        return [], self._failed(f"on the samples t = {t[0]:.6f}..{t[-1]:.6f} s ({failure})")
+
+    def settle(self) -> str | None:
+        """The control step a deferred call left (:meth:`AlignmentPipeline.settle`): None, or why it failed, the
+        pipeline started over as after a failed :meth:`process`."""
+        try:
+            self.pipeline.settle()
+            return None
+        except Exception as exc:   # whatever the estimator raised, the alignment goes on
+            return self._failed(f"in a control step ({type(exc).__name__}: {str(exc)[:80]})")
+
+    def _failed(self, where: str) -> str:
+        """Count, report and restart after a failed step; the report's line."""
         self.failures += 1
-        why = f"alignment failed on the samples t = {t[0]:.6f}..{t[-1]:.6f} s ({failure}): restarted"
+        why = f"alignment failed {where}: restarted"
         self._report(why)
         self.restart()
-        return [], why
+        return why
 
     def counters(self) -> dict[str, int]:
         """The failed steps (``estimator_restarts``), disturbances and the aiding counters, summed over the pipelines

@@ -232,3 +232,34 @@ def test_a_datasheet_claiming_an_ideal_sensor_cannot_hand_over_before_the_headin
     assert (pipeline.last_notice is not None) == pipeline.checks_noise
     phi = misalignment(dcm_from_quat(np.array(records[-1].q)), scenario.motion.attitude(np.array([120.0]))[0]) / DEG
     assert abs(phi[2] - run_limit_deg(scenario, chunk.t)[2]) < 0.05
+
+
+def test_control_steps_deferred_past_the_records_give_the_same_bits():
+    """The daemon publishes a block's records before its control step (process(defer_control=True), then settle):
+    one sample per call, settled at once or only by the next call, or calls that complete two blocks, the records
+    and the final state are the undeferred pipeline's to the bit."""
+    scenario = get_scenario("seed001-swing")
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 100.0, 6,
+                        chunk_samples=20000)
+    config = config_from_mapping({"output": {"period_s": 0.035}})   # epochs inside blocks and at their ends
+    pipelines = [AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=True)
+                 for _ in range(3)]
+    outputs: list[list] = [[], [], []]
+    for k in range(len(chunk.t)):
+        samples = chunk.t[k:k + 1], chunk.dtheta[k:k + 1], chunk.dv[k:k + 1]
+        outputs[0] += pipelines[0].process(*samples)
+        outputs[1] += pipelines[1].process(*samples, defer_control=True)
+        pipelines[1].settle()
+        outputs[2] += pipelines[2].process(*samples, defer_control=True)   # settled by the next call
+    pipelines[2].settle()
+    # calls of 30 samples (blocks of 20): every second one completes the waiting block and one more
+    pipelines.append(AlignmentPipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), live=True))
+    outputs.append([])
+    for k in range(0, len(chunk.t), 30):
+        outputs[3] += pipelines[3].process(chunk.t[k:k + 30], chunk.dtheta[k:k + 30], chunk.dv[k:k + 30],
+                                           defer_control=True)
+    pipelines[3].settle()
+    assert len(outputs[0]) == 2857 and all(out == outputs[0] for out in outputs[1:])
+    for p in pipelines[1:]:
+        assert p.fine.sigma == pipelines[0].fine.sigma and p.t_step == pipelines[0].t_step
+        assert np.array_equal(p.coarse.q_b_n0, pipelines[0].coarse.q_b_n0)
