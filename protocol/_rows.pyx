@@ -3,14 +3,106 @@
 
 It accepts only what needs no diagnosis: lines of ``ncols`` plain decimal numbers ([+-]digits[.digits][e[+-]digits],
 spaces or tabs around them) separated by commas, blank lines, and comment lines ('#' first after any spaces). Each
-number is converted by the C library's correctly rounded ``strtod``, as numpy's text reader converts it, so the
-values are the same bits. Anything else (a letter, a missing or extra cell, a number beyond float64, a carriage
-return, a byte beyond ASCII) returns None, and the reader takes its exact path that names the file, line and column.
+number is converted to the nearest float64 (ties to even), the bits of the C library's correctly rounded ``strtod``
+that numpy's text reader calls: exactly by one rounded product or quotient when the digits and the power of ten are
+both exact doubles (Clinger's fast path), else by the Eisel-Lemire algorithm (the digits times a 128-bit truncation
+of the power of five, accepted only where that truncation cannot change the rounding), else by ``strtod`` itself
+(more than 19 significant digits, subnormal results, the undecidable few). Anything else (a letter, a missing or
+extra cell, a number beyond float64, a carriage return, a byte beyond ASCII) returns None, and the reader takes its
+exact path that names the file, line and column.
 """
 from libc.math cimport isfinite
+from libc.stdint cimport int64_t, uint64_t
 from libc.stdlib cimport strtod
+from libc.string cimport memcpy
+from cpython.unicode cimport PyUnicode_AsUTF8AndSize
 
 import numpy as np
+
+
+cdef extern from *:
+    """
+    #include <stdint.h>
+    static inline void sinsalign_mul_64x64(uint64_t a, uint64_t b, uint64_t *lo, uint64_t *hi) {
+        unsigned __int128 r = (unsigned __int128)a * b;
+        *lo = (uint64_t)r;
+        *hi = (uint64_t)(r >> 64);
+    }
+    """
+    void _mul_64x64 "sinsalign_mul_64x64"(uint64_t a, uint64_t b, uint64_t* lo, uint64_t* hi) noexcept nogil
+    int _leading_zeros "__builtin_clzll"(uint64_t x) noexcept nogil
+
+
+DEF SMALLEST_POWER = -342   # below, any 19-digit significand rounds to zero; above LARGEST_POWER, to infinity
+DEF LARGEST_POWER = 308
+DEF MAX_DIGITS = 19         # significant digits a uint64 always holds
+DEF ZERO = 48               # '0'
+
+cdef uint64_t _POW5_HI[LARGEST_POWER - SMALLEST_POWER + 1]
+cdef uint64_t _POW5_LO[LARGEST_POWER - SMALLEST_POWER + 1]
+cdef double _POW10[23]
+
+
+def _fill_tables() -> None:
+    """5^q for q in [SMALLEST_POWER, LARGEST_POWER] as 128-bit significands, the top bit set: truncated for q >= 0,
+    a truncated reciprocal plus one for q < 0 (the Eisel-Lemire tables); 10^k for k <= 22, each an exact double."""
+    for q in range(SMALLEST_POWER, LARGEST_POWER + 1):
+        if q >= 0:
+            c = 5 ** q
+            bits = c.bit_length()
+            c = c << (128 - bits) if bits <= 128 else c >> (bits - 128)
+        else:
+            power5 = 5 ** -q
+            z = power5.bit_length()          # the least z with 2^z >= 5^-q (no power of five is a power of two)
+            c = 2 ** (z + 127 if q >= -27 else 2 * z + 128) // power5 + 1
+            if c.bit_length() > 128:
+                c >>= c.bit_length() - 128
+        _POW5_HI[q - SMALLEST_POWER] = c >> 64
+        _POW5_LO[q - SMALLEST_POWER] = c & 0xFFFFFFFFFFFFFFFF
+    for q in range(23):
+        _POW10[q] = float(10 ** q)
+
+
+_fill_tables()
+
+
+cdef inline bint _eisel_lemire(int64_t q, uint64_t w, bint negative, double* out) noexcept nogil:
+    """w * 10^q (w > 0) rounded to the nearest float64 into ``out``; False where this algorithm cannot decide
+    (or the result is subnormal or beyond float64): the caller asks strtod."""
+    cdef uint64_t lo, hi, second_lo, second_hi, mantissa, bits
+    cdef int lz, upper_bit
+    cdef int64_t power2
+    if q < SMALLEST_POWER or q > LARGEST_POWER:
+        return False
+    lz = _leading_zeros(w)
+    w <<= lz
+    _mul_64x64(w, _POW5_HI[q - SMALLEST_POWER], &lo, &hi)
+    if (hi & 0x1FF) == 0x1FF:    # the bits below the 55 kept may carry into them: take the table's next word
+        _mul_64x64(w, _POW5_LO[q - SMALLEST_POWER], &second_lo, &second_hi)
+        lo += second_hi
+        if second_hi > lo:
+            hi += 1
+    if lo == ~(<uint64_t>0) and (q < -27 or q > 55):
+        return False
+    upper_bit = <int>(hi >> 63)
+    mantissa = hi >> (upper_bit + 9)
+    power2 = ((q * (152170 + 65536)) >> 16) + 63 + upper_bit - lz + 1023
+    if power2 <= 0:
+        return False
+    if (lo <= 1 and -4 <= q <= 23 and (mantissa & 3) == 1
+            and (mantissa << (upper_bit + 9)) == hi):   # exactly halfway: round to even, down
+        mantissa &= ~(<uint64_t>1)
+    mantissa += mantissa & 1
+    mantissa >>= 1
+    if mantissa >= (<uint64_t>2 << 52):
+        mantissa = <uint64_t>1 << 52
+        power2 += 1
+    mantissa &= ~(<uint64_t>1 << 52)
+    if power2 >= 0x7FF:
+        return False
+    bits = mantissa | (<uint64_t>power2 << 52) | (<uint64_t>negative << 63)
+    memcpy(out, &bits, 8)
+    return True
 
 
 cdef inline bint _blank(char c) noexcept nogil:
@@ -21,17 +113,29 @@ cdef inline bint _digit(char c) noexcept nogil:
     return b'0' <= c <= b'9'
 
 
-cdef Py_ssize_t _number_end(const char* s, Py_ssize_t p) noexcept nogil:
-    """The end of the plain decimal number at ``s[p]``, or -1 if there is none."""
-    cdef Py_ssize_t digits = 0
+cdef Py_ssize_t _number(const char* s, Py_ssize_t p, double* value) noexcept nogil:
+    """The end of the plain decimal number at ``s[p]``, its value in ``value``; -1 if there is none."""
+    cdef Py_ssize_t start = p
+    cdef Py_ssize_t digits = 0, significant = 0
+    cdef uint64_t w = 0
+    cdef int64_t q = 0, exponent = 0
+    cdef bint negative = s[p] == b'-', exponent_negative = False
+    cdef char* stop
     if s[p] == b'+' or s[p] == b'-':
         p += 1
     while _digit(s[p]):
+        if w or s[p] != b'0':
+            significant += 1
+            w = w * 10 + <uint64_t>(s[p] - ZERO)
         p += 1
         digits += 1
     if s[p] == b'.':
         p += 1
         while _digit(s[p]):
+            if w or s[p] != b'0':
+                significant += 1
+                w = w * 10 + <uint64_t>(s[p] - ZERO)
+            q -= 1
             p += 1
             digits += 1
     if digits == 0:
@@ -39,21 +143,41 @@ cdef Py_ssize_t _number_end(const char* s, Py_ssize_t p) noexcept nogil:
     if s[p] == b'e' or s[p] == b'E':
         p += 1
         if s[p] == b'+' or s[p] == b'-':
+            exponent_negative = s[p] == b'-'
             p += 1
         if not _digit(s[p]):
             return -1
         while _digit(s[p]):
+            if exponent < 100000:   # any more is zero or infinity for every significand
+                exponent = exponent * 10 + (s[p] - ZERO)
             p += 1
+        q += -exponent if exponent_negative else exponent
+    if significant > MAX_DIGITS:   # w wrapped: the C library's conversion
+        value[0] = strtod(s + start, &stop)
+        return p if stop == s + p else -1
+    if w == 0:
+        value[0] = -0.0 if negative else 0.0
+    elif -22 <= q <= 22 and w <= (<uint64_t>1 << 53):   # both exact doubles: one correctly rounded operation
+        value[0] = <double>w / _POW10[-q] if q < 0 else <double>w * _POW10[q]
+        if negative:
+            value[0] = -value[0]
+    elif not _eisel_lemire(q, w, negative, value):
+        value[0] = strtod(s + start, &stop)
+        if stop != s + p:
+            return -1
     return p
 
 
-def parse_rows(bytes data, int ncols):
-    """The data rows of ``data`` (ASCII lines, each ended by a newline) as an (N, ncols) float64 array, every value
-    finite; None where the chunk holds anything beyond plain rows, blank lines and comments."""
-    cdef const char* s = data
-    cdef Py_ssize_t n = len(data), p = 0, end, rows = data.count(b"\n") + 1, row = 0
+def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
+    """The data rows of ``text`` (lines, each ended by a newline) as an (N, ncols) float64 array, every value
+    finite; None where the chunk holds anything beyond plain rows, blank lines and comments in ASCII, or a line of
+    more than ``max_line_chars`` characters (the newline included)."""
+    if not text.isascii():
+        return None
+    cdef Py_ssize_t n
+    cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
+    cdef Py_ssize_t p = 0, end, line_start = 0, row = 0, rows = text.count("\n") + 1
     cdef int col
-    cdef char* stop
     cdef double value
     out = np.empty((rows, ncols))
     cdef double[:, ::1] o = out
@@ -62,11 +186,17 @@ def parse_rows(bytes data, int ncols):
             p += 1
         if s[p] == b'\n':
             p += 1
+            if p - line_start > max_line_chars:
+                return None
+            line_start = p
             continue
         if s[p] == b'#':
             while p < n and s[p] != b'\n':
                 p += 1
             p += 1
+            if p - line_start > max_line_chars:
+                return None
+            line_start = p
             continue
         if p >= n:
             break
@@ -74,11 +204,8 @@ def parse_rows(bytes data, int ncols):
         while True:
             while _blank(s[p]):
                 p += 1
-            end = _number_end(s, p)
-            if end < 0 or col >= ncols:
-                return None
-            value = strtod(s + p, &stop)
-            if stop != s + end or not isfinite(value):
+            end = _number(s, p, &value)
+            if end < 0 or col >= ncols or not isfinite(value):
                 return None
             o[row, col] = value
             col += 1
@@ -95,4 +222,7 @@ def parse_rows(bytes data, int ncols):
             return None
         row += 1
         p += 1
+        if p - line_start > max_line_chars:
+            return None
+        line_start = p
     return out[:row]

@@ -15,6 +15,7 @@ message quotes is cut short (:func:`shown`), so the message stays one short line
 """
 from __future__ import annotations
 
+import io
 import math
 import re
 import reprlib
@@ -342,8 +343,7 @@ def _block(lines: list[str], first_line: int, path: str, columns: tuple[str, ...
            limits: RowLimits | None) -> np.ndarray:
     """The data rows of ``lines`` (line ``first_line`` on) as an (N, len(columns)) float64 block, every value finite
     and within ``limits`` (if given); LogFormatError naming the first bad cell."""
-    text = "".join(lines)
-    block = parse_rows(text.encode(), len(columns)) if text.isascii() else None
+    block = parse_rows("".join(lines), len(columns), MAX_LINE_CHARS)
     if block is None:   # beyond the plain rows the compiled pass takes: numpy's reader, then the diagnosis
         block = _loadtxt_block(lines, first_line, path, columns)
     problem = None if limits is None else limits.problem(block, columns)
@@ -366,15 +366,69 @@ def first_not_increasing(times: np.ndarray, t_last: float) -> tuple[int, str] | 
 def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
                   chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
                   limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
-    """Yield (restart, block): (N, len(columns)) float64 blocks of the data rows, every value within ``limits`` (if
-    given), each after a :data:`RESTART_MARKER` line with that marker's reason (None for the others; a marker's
-    block may be empty).
+    """Yield (restart, block): (N, len(columns)) float64 blocks of at most ``chunk_rows`` data rows, every value
+    within ``limits`` (if given), each after a :data:`RESTART_MARKER` line with that marker's reason (None for the
+    others; a marker's block may be empty).
 
     ``increasing``: time must increase strictly (IMU logs), within the rows between two markers; aiding logs leave
     ordering to the consumer, which counts repeats and out-of-order epochs instead of stopping.
+
+    The stream is read in pieces of whole lines (:data:`CHUNK_CHARS`); a piece of plain rows within their limits
+    is one compiled pass, any other (a marker, a bad or long line, a file cut inside its last line) is read line by
+    line by :func:`_line_segments`, which names the line.
     """
+    line_no, t_last = first_line, -math.inf
+    for text in _whole_lines(stream):
+        block = None if RESTART_MARKER in text else parse_rows(text, len(columns), MAX_LINE_CHARS)
+        if block is None or not _acceptable(block, columns, limits, increasing, t_last):
+            pieces = _line_segments(io.StringIO(text), path, line_no, columns, chunk_rows, increasing, limits, t_last)
+        else:
+            pieces = ((None, block[start:start + chunk_rows]) for start in range(0, len(block), chunk_rows))
+        for reason, piece in pieces:
+            if reason is not None:
+                t_last = -math.inf
+            if len(piece):
+                t_last = float(piece[-1, 0])
+            yield reason, piece
+        line_no += text.count("\n")
+
+
+CHUNK_CHARS = 1 << 20
+"""Characters read at a time: whole lines of them are parsed in one pass."""
+
+
+def _whole_lines(stream: TextIO) -> Iterator[str]:
+    """The stream's text in pieces of whole lines of about :data:`CHUNK_CHARS`; the last piece may end without a
+    line end (a file cut short), and a piece may be one line longer than :data:`MAX_LINE_CHARS` without its end
+    (read no further: the line reader refuses it)."""
+    carry = ""
+    while data := stream.read(CHUNK_CHARS):
+        text = carry + data
+        cut = text.rfind("\n") + 1
+        if cut == 0 and len(text) > MAX_LINE_CHARS:
+            yield text
+            return
+        if cut:
+            yield text[:cut]
+        carry = text[cut:]
+    if carry:
+        yield carry
+
+
+def _acceptable(block: np.ndarray, columns: tuple[str, ...], limits: RowLimits | None, increasing: bool,
+                t_last: float) -> bool:
+    """No value of ``block`` beyond ``limits`` and, with ``increasing``, its times increasing after ``t_last``."""
+    if limits is not None and limits.problem(block, columns) is not None:
+        return False
+    return not increasing or first_not_increasing(block[:, 0], t_last) is None
+
+
+def _line_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...], chunk_rows: int,
+                   increasing: bool, limits: RowLimits | None,
+                   t_last: float) -> Iterator[tuple[str | None, np.ndarray]]:
+    """:func:`read_segments` line by line, the rows before the first after ``t_last``: cut at markers, each bad
+    cell, out-of-order time or overlong line raised as LogFormatError with its line."""
     line_no = first_line
-    t_last = -math.inf
     while lines := _lines(stream, path, line_no, chunk_rows):
         for reason, piece, piece_line in _pieces(lines, line_no):
             if reason is not None:

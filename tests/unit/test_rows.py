@@ -41,7 +41,7 @@ def plain_chunk(draw) -> str:
 @settings(max_examples=300, deadline=None)
 @given(plain_chunk())
 def test_plain_rows_are_parsed_to_numpys_bits(text):
-    got = parse_rows(text.encode(), NCOLS)
+    got = parse_rows(text, NCOLS, 4096)
     assert got is not None
     assert got.tobytes() == numpy_rows(text).tobytes() and got.shape[1] == NCOLS
 
@@ -49,7 +49,7 @@ def test_plain_rows_are_parsed_to_numpys_bits(text):
 @settings(max_examples=500, deadline=None)
 @given(st.text(st.characters(codec="ascii"), max_size=200) | plain_chunk().map(lambda t: t[:len(t) // 2] + "x,"))
 def test_anything_else_is_refused_or_read_as_numpy_reads_it(text):
-    got = parse_rows(text.encode(), NCOLS)
+    got = parse_rows(text, NCOLS, 4096)
     if got is None:
         return
     expected = numpy_rows(text)
@@ -60,4 +60,33 @@ def test_anything_else_is_refused_or_read_as_numpy_reads_it(text):
                                   "1,2,3\r\n", "1,2,0x10\n", "1,2,1_0\n", "1,2,1d5\n", "1,,3\n", "1,2,.\n",
                                   "1,2,e5\n", "1,2,3 4\n", "1,2,--3\n", "1,2,3\x00\n"])
 def test_what_needs_a_diagnosis_is_refused(text):
-    assert parse_rows(text.encode(), NCOLS) is None
+    assert parse_rows(text, NCOLS, 4096) is None
+
+
+@pytest.mark.parametrize("spelling", ["{:.17g}", "{:.15g}", "{:.6e}", "{:.20g}", "{:.25e}"])
+def test_any_float64_bits_are_read_as_correctly_rounded(spelling):
+    """Random bit patterns (subnormals, the extremes), written with up to 26 digits: Python's correctly rounded
+    float() is the truth; the fast paths (exact products, Eisel-Lemire) and strtod must all give its bits."""
+    rng = np.random.default_rng(7)
+    values = rng.integers(0, 2**64, 20000, dtype=np.uint64, endpoint=False).view(np.float64)
+    values = values[np.isfinite(values)]
+    cells = [spelling.format(float(v)) for v in values]
+    got = parse_rows("".join(cell + "\n" for cell in cells), 1, 4096)
+    assert got is not None
+    assert got[:, 0].tobytes() == np.array([float(cell) for cell in cells]).tobytes()
+
+
+@pytest.mark.parametrize("text", ["9007199254740993\n", "2.2250738585072011e-308\n", "4.9406564584124654e-324\n",
+                                  "1.7976931348623157e308\n", "-0\n", "00000001.5\n",
+                                  "0.1000000000000000055511151231257827\n",
+                                  "123456789012345678901234567890\n", "1e-400\n", "7.2057594037927933e16\n"])
+def test_ties_and_edges_are_rounded_as_float_rounds_them(text):
+    got = parse_rows(text, 1, 4096)
+    assert got is not None and got[0, 0].tobytes() == np.float64(float(text)).tobytes()
+
+
+def test_a_line_longer_than_the_bound_is_refused():
+    row = "1," * 10 + "1\n"
+    assert parse_rows(row * 3, 11, len(row)) is not None
+    assert parse_rows(row + " " * len(row) + "\n" + row, 11, len(row)) is None
+    assert parse_rows("#" + "x" * len(row) + "\n", 11, len(row)) is None
