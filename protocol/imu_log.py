@@ -379,7 +379,9 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
     """
     line_no, t_last = first_line, -math.inf
     for text in _whole_lines(stream):
-        block = None if RESTART_MARKER in text else parse_rows(text, len(columns), MAX_LINE_CHARS)
+        # a piece without its line end is the file's last, cut short: the line reader names that line
+        whole = text.endswith("\n") and RESTART_MARKER not in text
+        block = parse_rows(text, len(columns), MAX_LINE_CHARS) if whole else None
         if block is None or not _acceptable(block, columns, limits, increasing, t_last):
             pieces = _line_segments(io.StringIO(text), path, line_no, columns, chunk_rows, increasing, limits, t_last)
         else:
@@ -393,24 +395,24 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
         line_no += text.count("\n")
 
 
-CHUNK_CHARS = 1 << 20
+CHUNK_CHARS = 1 << 19
 """Characters read at a time: whole lines of them are parsed in one pass."""
 
 
 def _whole_lines(stream: TextIO) -> Iterator[str]:
     """The stream's text in pieces of whole lines of about :data:`CHUNK_CHARS`; the last piece may end without a
-    line end (a file cut short), and a piece may be one line longer than :data:`MAX_LINE_CHARS` without its end
-    (read no further: the line reader refuses it)."""
+    line end: a file cut short, or a line longer than :data:`MAX_LINE_CHARS` (its first characters only, read no
+    further: the line reader refuses it, so a line of gigabytes costs one piece of memory)."""
     carry = ""
     while data := stream.read(CHUNK_CHARS):
         text = carry + data
         cut = text.rfind("\n") + 1
-        if cut == 0 and len(text) > MAX_LINE_CHARS:
-            yield text
-            return
         if cut:
             yield text[:cut]
         carry = text[cut:]
+        if len(carry) > MAX_LINE_CHARS:
+            yield carry[:MAX_LINE_CHARS + 1]
+            return
     if carry:
         yield carry
 
