@@ -11,7 +11,9 @@ exactly symmetric: its upper triangle is computed and mirrored.
 
 Frames and units as in compass.py: C_{b0}^{p} (3, 3), V^p (E, N) m/s, rates rad/s, Δα m/s in b0 axes.
 """
-from libc.math cimport cos, pow, sin, sqrt
+from libc.math cimport ceil, cos, fabs, log2, pow, sin, sqrt
+
+import numpy as np
 
 
 cdef void _rotation(double x, double y, double z, double* R) noexcept nogil:
@@ -114,3 +116,58 @@ def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, d
         for j in range(i):
             P[i, j] = P[j, i]
     return I_E, I_N, y
+
+
+def expm(const double[:, ::1] A):
+    """The matrix exponential of a small square ``A`` by scaling and squaring of a Taylor series: A scaled by 2^−s
+    to a row-sum norm of at most 0.25, nine terms, s squarings. The products add their terms in index order where
+    numpy's BLAS may not (tests/unit/test_compass_kernel.py holds it to the numpy form)."""
+    cdef Py_ssize_t n = A.shape[0], i, j, m
+    cdef double norm = 0.0, row, scale, s
+    cdef int squarings = 0, k
+    if A.shape[1] != n:
+        raise ValueError("expm: A must be square")
+    for i in range(n):
+        row = 0.0
+        for j in range(n):
+            row = row + fabs(A[i, j])
+        if row > norm:
+            norm = row
+    if norm > 0.25:
+        squarings = <int>ceil(log2(norm / 0.25))
+    scale = pow(2.0, <double>squarings)
+    E_out = np.empty((n, n))
+    cdef double[:, ::1] E = E_out
+    X_arr = np.empty((n, n))
+    term_arr = np.empty((n, n))
+    next_arr = np.empty((n, n))
+    cdef double[:, ::1] X = X_arr
+    cdef double[:, ::1] term = term_arr
+    cdef double[:, ::1] nxt = next_arr
+    for i in range(n):
+        for j in range(n):
+            X[i, j] = A[i, j] / scale
+            E[i, j] = 1.0 if i == j else 0.0
+            term[i, j] = E[i, j]
+    for k in range(1, 10):
+        for i in range(n):
+            for j in range(n):
+                s = 0.0
+                for m in range(n):
+                    s = s + term[i, m] * X[m, j]
+                nxt[i, j] = s / k
+        for i in range(n):
+            for j in range(n):
+                term[i, j] = nxt[i, j]
+                E[i, j] = E[i, j] + nxt[i, j]
+    for k in range(squarings):
+        for i in range(n):
+            for j in range(n):
+                s = 0.0
+                for m in range(n):
+                    s = s + E[i, m] * E[m, j]
+                nxt[i, j] = s
+        for i in range(n):
+            for j in range(n):
+                E[i, j] = nxt[i, j]
+    return E_out

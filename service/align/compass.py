@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._compass import compass_step
+from ._compass import compass_step, expm
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
@@ -121,21 +121,6 @@ def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
     if angle < 1e-8:
         return EYE3 + S + 0.5 * S @ S
     return EYE3 + np.sin(angle) / angle * S + (1.0 - np.cos(angle)) / angle**2 * S @ S
-
-
-def expm(A: np.ndarray) -> np.ndarray:
-    """Matrix exponential by scaling and squaring of a Taylor series (small dense matrices)."""
-    norm = float(np.abs(A).sum(axis=1).max())
-    squarings = max(0, int(np.ceil(np.log2(norm / 0.25))) if norm > 0.25 else 0)
-    X = A / 2.0**squarings
-    E = np.eye(len(A))
-    term = np.eye(len(A))
-    for k in range(1, 10):
-        term = term @ X / k
-        E = E + term
-    for _ in range(squarings):
-        E = E @ E
-    return E
 
 
 @dataclass(slots=True)
