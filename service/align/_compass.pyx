@@ -50,13 +50,11 @@ cdef inline void _mat3_mul(const double* A, const double* B, double* out) noexce
             out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
 
 
-def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, double y,
-                 const double[::1] dalpha_b0, double dt_s, double K1L, double K2L, double K3L, bint azimuth_on,
-                 double K1A, double K2A, double K3A, double K4A, double earth_sign, const double[::1] omega_ie_n,
-                 double omega_cos, double omega_sin, double radius_m, const double[:, ::1] F,
-                 const double[:, ::1] Q, double[:, ::1] P):
-    """One control step (module docstring): ``C_b0_p``, ``V`` and ``P`` updated in place; returns the new
-    (I_E, I_N, y). The azimuth gains K1A..K4A are read only with ``azimuth_on``."""
+cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, const double* dalpha_b0,
+                double dt_s, double K1L, double K2L, double K3L, bint azimuth_on, double K1A, double K2A, double K3A,
+                double K4A, double earth_sign, const double* omega_ie_n, double omega_cos, double omega_sin,
+                double radius_m, const double* F, const double* Q, double* P) noexcept nogil:
+    """One control step (module docstring) on row-major C_{b0}^{p} (9), V (2), F, Q, P (64), in place."""
     cdef double V_E = V[0], V_N = V[1], omega_E, w_up, K1N
     cdef double H[9]
     cdef double C[9]
@@ -72,25 +70,25 @@ def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, d
     if azimuth_on:
         omega_E = -(1.0 + K2A) * V_N / radius_m
     else:
-        omega_E = -(1.0 + K2L) * V_N / radius_m - I_N
+        omega_E = -(1.0 + K2L) * V_N / radius_m - I_N[0]
     _rotation(-0.5 * dt_s * (earth_sign * omega_ie_n[0] + omega_E),
-              -0.5 * dt_s * (earth_sign * omega_ie_n[1] + ((1.0 + K2L) * V_E / radius_m + I_E)),
-              -0.5 * dt_s * (earth_sign * omega_ie_n[2] + y), H)
+              -0.5 * dt_s * (earth_sign * omega_ie_n[1] + ((1.0 + K2L) * V_E / radius_m + I_E[0])),
+              -0.5 * dt_s * (earth_sign * omega_ie_n[2] + y[0]), H)
     for i in range(3):
-        Cv[i] = C_b0_p[i, 0] * dalpha_b0[0] + C_b0_p[i, 1] * dalpha_b0[1] + C_b0_p[i, 2] * dalpha_b0[2]
+        Cv[i] = C_b0_p[3 * i] * dalpha_b0[0] + C_b0_p[3 * i + 1] * dalpha_b0[1] + C_b0_p[3 * i + 2] * dalpha_b0[2]
     for i in range(3):
         dv[i] = H[3 * i] * Cv[0] + H[3 * i + 1] * Cv[1] + H[3 * i + 2] * Cv[2]
     w_up = earth_sign * omega_sin
     K1N = K1A if azimuth_on else K1L
     V[0] = V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s
     V[1] = V_N + dv[1] + (-2.0 * w_up * V_E - K1N * V_N) * dt_s
-    I_E += K3L * V_E * dt_s
+    I_E[0] += K3L * V_E * dt_s
     if azimuth_on:
-        y += (-K3A * y + K4A / (earth_sign * omega_cos) * V_N) * dt_s
+        y[0] += (-K3A * y[0] + K4A / (earth_sign * omega_cos) * V_N) * dt_s
     else:
-        I_N += K3L * V_N * dt_s
+        I_N[0] += K3L * V_N * dt_s
     # C ← H H C, then re-orthonormalised to first order: 1.5 C − 0.5 C Cᵀ C
-    _mat3_mul(H, &C_b0_p[0, 0], HC)
+    _mat3_mul(H, C_b0_p, HC)
     _mat3_mul(H, HC, C)
     for i in range(3):
         for j in range(3):
@@ -98,23 +96,55 @@ def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, d
     _mat3_mul(CCt, C, CCtC)
     for i in range(3):
         for j in range(3):
-            C_b0_p[i, j] = 1.5 * C[3 * i + j] - 0.5 * CCtC[3 * i + j]
+            C_b0_p[3 * i + j] = 1.5 * C[3 * i + j] - 0.5 * CCtC[3 * i + j]
     # P ← F P Fᵀ + Q, the upper triangle mirrored
     for i in range(8):
         for j in range(8):
             s = 0.0
             for k in range(8):
-                s = s + F[i, k] * P[k, j]
+                s = s + F[8 * i + k] * P[8 * k + j]
             T[8 * i + j] = s
     for i in range(8):
         for j in range(i, 8):
             s = 0.0
             for k in range(8):
-                s = s + T[8 * i + k] * F[j, k]
-            P[i, j] = s + Q[i, j]
+                s = s + T[8 * i + k] * F[8 * j + k]
+            P[8 * i + j] = s + Q[8 * i + j]
     for i in range(8):
         for j in range(i):
-            P[i, j] = P[j, i]
+            P[8 * i + j] = P[8 * j + i]
+
+
+def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, double y,
+                 const double[::1] dalpha_b0, double dt_s, double K1L, double K2L, double K3L, bint azimuth_on,
+                 double K1A, double K2A, double K3A, double K4A, double earth_sign, const double[::1] omega_ie_n,
+                 double omega_cos, double omega_sin, double radius_m, const double[:, ::1] F,
+                 const double[:, ::1] Q, double[:, ::1] P):
+    """One control step (module docstring): ``C_b0_p``, ``V`` and ``P`` updated in place; returns the new
+    (I_E, I_N, y). The azimuth gains K1A..K4A are read only with ``azimuth_on``."""
+    _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, &dalpha_b0[0], dt_s, K1L, K2L, K3L, azimuth_on, K1A, K2A, K3A, K4A,
+          earth_sign, &omega_ie_n[0], omega_cos, omega_sin, radius_m, &F[0, 0], &Q[0, 0], &P[0, 0])
+    return I_E, I_N, y
+
+
+def compass_steps(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, double y,
+                  const double[:, ::1] dalpha_b0, const double[::1] dt_s, double K1L, double K2L, double K3L,
+                  bint azimuth_on, double K1A, double K2A, double K3A, double K4A, double earth_sign,
+                  const double[::1] omega_ie_n, double omega_cos, double omega_sin, double radius_m,
+                  const double[:, :, ::1] F, const double[:, :, ::1] Q, const Py_ssize_t[::1] which,
+                  double[:, ::1] P):
+    """:func:`compass_step` over N steps at fixed gains (Δα (N, 3), Δ (N,)), step k with ``F[which[k]]`` and
+    ``Q[which[k]]``: the same arithmetic in the same order as N calls; returns the new (I_E, I_N, y)."""
+    cdef Py_ssize_t k, n = dt_s.shape[0], m
+    if dalpha_b0.shape[0] != n or which.shape[0] != n:
+        raise ValueError("compass_steps: dalpha_b0, dt_s and which need one row per step")
+    for k in range(n):
+        m = which[k]
+        if m < 0 or m >= F.shape[0] or m >= Q.shape[0]:
+            raise IndexError("compass_steps: which names no transition")
+        _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, &dalpha_b0[k, 0], dt_s[k], K1L, K2L, K3L, azimuth_on, K1A, K2A,
+              K3A, K4A, earth_sign, &omega_ie_n[0], omega_cos, omega_sin, radius_m, &F[m, 0, 0], &Q[m, 0, 0],
+              &P[0, 0])
     return I_E, I_N, y
 
 

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._compass import compass_step, expm
+from ._compass import compass_step, compass_steps, expm
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
@@ -209,10 +209,7 @@ class CompassLoops:
         ``advance_schedule`` False keeps the loop time (and so the gains) where it is: the
         stored-data passes run at the bandwidth the loops had when the buffer filled.
         """
-        level, azimuth = self._gains(state)
-        if azimuth is not None and not state.azimuth_on:
-            # the azimuth loop takes the north channel over; its integrator rate is the signal now
-            state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
+        level, azimuth = self._azimuth_switch(state)
         K1A, K2A, K3A, K4A = azimuth if state.azimuth_on else _NO_AZIMUTH
         F = self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, dt_s)
         state.I_E, state.I_N, state.y = compass_step(
@@ -221,6 +218,29 @@ class CompassLoops:
             self._process_noise(dt_s), state.P)
         if advance_schedule:
             state.t_loop_s += dt_s
+
+    def steps_held(self, state: CompassState, dalpha_b0: np.ndarray, dt_s: np.ndarray) -> None:
+        """:meth:`step` over N control steps (Δα (N, 3) m/s, Δ (N,) s) with the loop time held (the stored-data
+        passes), in one compiled call: the gains stay, so each step takes the transition of its length."""
+        level, azimuth = self._azimuth_switch(state)
+        K1A, K2A, K3A, K4A = azimuth if state.azimuth_on else _NO_AZIMUTH
+        lengths, which = np.unique(dt_s, return_inverse=True)
+        F = np.stack([self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, float(d))
+                      for d in lengths])
+        Q = np.stack([self._process_noise(float(d)) for d in lengths])
+        state.I_E, state.I_N, state.y = compass_steps(
+            state.C_b0_p, state.V, state.I_E, state.I_N, state.y, np.ascontiguousarray(dalpha_b0),
+            np.ascontiguousarray(dt_s), *level, state.azimuth_on, K1A, K2A, K3A, K4A, state.earth_sign,
+            self.omega_ie_n, self.omega_cos, self.omega_sin, self.radius_m, F, Q, which.astype(np.intp).reshape(-1),
+            state.P)
+
+    def _azimuth_switch(self, state: CompassState) -> tuple[tuple, tuple | None]:
+        """The gains at the state's loop time; the first with the azimuth loop's gains switches it on: it takes the
+        north channel over, its integrator rate is the signal now."""
+        level, azimuth = self._gains(state)
+        if azimuth is not None and not state.azimuth_on:
+            state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
+        return level, azimuth
 
     def reverse(self, state: CompassState) -> None:
         """Turn the state round for a pass in the other time direction (see the module docstring)."""

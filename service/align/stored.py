@@ -14,7 +14,6 @@ same data in the same order, so the state that comes out is bit-identical.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Iterator
 
 import numpy as np
 
@@ -56,31 +55,47 @@ class RepeatedNavigation:
         self.catch_up: deque[tuple[np.ndarray, float]] = deque()
         self.steps_run = 0
         self.passes_done = False
-        self._work = self._steps()
+        self._pass = 0   # passes begun: the odd-numbered ones (the first, third …) run backward
+        self._done_in_pass = buffer.count   # steps of the current pass run (none begun: the last one complete)
 
     def queue(self, dalpha_b0: np.ndarray, dt_s: float) -> None:
         """A live step that the clone must also run once the passes are over."""
         self.catch_up.append((np.array(dalpha_b0, dtype=float), float(dt_s)))
 
-    def _steps(self) -> Iterator[None]:
+    def _run_passes(self, max_steps: int) -> int:
+        """Run up to ``max_steps`` (≥ 1) pass steps, a pass's stretch in one compiled call; how many ran (0: the
+        passes are over)."""
         n = self.buffer.count
-        for _ in range(self.pairs):
-            for order in (range(n - 1, -1, -1), range(n)):
-                self.loops.reverse(self.state)
-                for i in order:
-                    dalpha, dt_s = self.buffer.dalpha[i], float(self.buffer.dt_s[i])
-                    self.loops.step(self.state, dalpha, dt_s, advance_schedule=False)
-                    yield
+        if self._done_in_pass == n:
+            if self._pass == 2 * self.pairs:
+                return 0
+            self.loops.reverse(self.state)
+            self._pass, self._done_in_pass = self._pass + 1, 0
+        take = min(max_steps, n - self._done_in_pass)
+        if self._pass % 2:   # backward: from the newest stored step
+            first = n - 1 - self._done_in_pass
+            rows = slice(first, first - take if first - take >= 0 else None, -1)
+        else:
+            rows = slice(self._done_in_pass, self._done_in_pass + take)
+        self.loops.steps_held(self.state, self.buffer.dalpha[rows], self.buffer.dt_s[rows])
+        self._done_in_pass += take
+        return take
 
     def run(self, max_steps: int | None = None) -> bool:
-        """Run up to ``max_steps`` steps (all if None); True once passes and catch-up are done."""
+        """Run up to ``max_steps`` steps (all if None); True once passes and catch-up are done. The passes count as
+        over at the first call that finds no pass step left, as the catch-up then begins."""
         steps = 0
         while max_steps is None or steps < max_steps:
             if not self.passes_done:
-                if next(self._work, _DONE) is _DONE:
+                ran = self._run_passes(self.buffer.count * 2 * self.pairs if max_steps is None
+                                       else max_steps - steps)
+                if ran == 0:
                     self.passes_done = True
                     continue
-            elif self.catch_up:
+                steps += ran
+                self.steps_run += ran
+                continue
+            if self.catch_up:
                 dalpha, dt_s = self.catch_up.popleft()
                 self.loops.step(self.state, dalpha, dt_s)
             else:
@@ -88,6 +103,3 @@ class RepeatedNavigation:
             steps += 1
             self.steps_run += 1
         return self.passes_done and not self.catch_up
-
-
-_DONE = object()
