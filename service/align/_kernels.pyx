@@ -499,3 +499,42 @@ def recursive_k_prepare(const double[:, :] b, const double[:, :] r, const double
             dK[k, 3, i] = z[i]
         dK[k, 3, 3] = sigma
     return dK_out, trace_out
+
+
+def recursive_k_fold(const double[:, ::1] K, const double[:, :, ::1] dK, const double[::1] trace_R, double m,
+                     double trace_P, long n, double rho, double trace_Q, int policy, double fixed_rho):
+    """:meth:`RecursiveK.fold` of the prepared observations (δK (M, 4, 4), tr R (M,)) in order: K ← a K + c δK with
+    the gain of ``policy`` (0 OPREQ's ρ*, 1 REQUEST's fixed ρ, 2 the q-method's 1/(n + 1)), the scalars in Python's
+    order, K elementwise as numpy's (the same bits). Returns (K, m, tr P, n, ρ), K a new (4, 4) array."""
+    cdef Py_ssize_t j, i, count = trace_R.shape[0]
+    cdef double m_new, a, c, tr_R
+    if dK.shape[0] != count or dK.shape[1] != 4 or dK.shape[2] != 4 or K.shape[0] != 4 or K.shape[1] != 4:
+        raise ValueError("recursive_k_fold: K (4, 4), dK (M, 4, 4) and trace_R (M,)")
+    K_out = np.array(K, dtype=float, copy=True)
+    cdef double[:, ::1] Kn = K_out
+    cdef double* k = &Kn[0, 0]
+    cdef const double* d
+    for j in range(count):
+        tr_R = trace_R[j]
+        d = &dK[j, 0, 0]
+        if n == 0:   # K_0 = δK_0, P_0 = R_0, m_0 = 1
+            for i in range(16):
+                k[i] = d[i]
+            m, trace_P, rho = 1.0, tr_R, 1.0
+        else:
+            trace_P = trace_P + trace_Q
+            if policy == 0:
+                rho = m * m * trace_P / (m * m * trace_P + tr_R)
+            elif policy == 1:
+                rho = fixed_rho
+            else:
+                rho = 1.0 / (<double>n + 1.0)
+            m_new = (1.0 - rho) * m + rho
+            a = (1.0 - rho) * m / m_new
+            c = rho / m_new
+            trace_P = a * a * trace_P + c * c * tr_R
+            for i in range(16):
+                k[i] = a * k[i] + c * d[i]
+            m = m_new
+        n += 1
+    return K_out, m, trace_P, n, rho

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ._attitude import quaternion_from_K
-from ._kernels import recursive_k_prepare
+from ._kernels import recursive_k_fold, recursive_k_prepare
 from .conventions import dcm_from_quat, skew
 
 if TYPE_CHECKING:
@@ -39,6 +39,8 @@ if TYPE_CHECKING:
 
 SOLVERS = ("opreq", "request", "qmethod", "centred", "gls")
 ALIGNMENT_SOLVERS = ("auto", *SOLVERS)
+_GAIN_POLICY = {"opreq": 0, "request": 1, "qmethod": 2}
+"""The compiled fold's code of each recursive solver's gain (_kernels.recursive_k_fold)."""
 """What ``alignment.solver`` takes: "auto" picks OPREQ or GLS from the datasheet (sensor_model.auto_solver)."""
 
 
@@ -120,28 +122,12 @@ class RecursiveK:
         Strictly sequential, so K gets the same bits however the observations are grouped into
         calls (one per block live, many per chunk offline).
         """
-        m, trace_P, n, K, rho = self.m, self.trace_P, self.n_obs, self.K, self.rho
-        for j, tr_R in enumerate(trace_R):
-            if n == 0:  # K_0 = δK_0, P_0 = R_0, m_0 = 1
-                K, m, trace_P, rho = dK[j].copy(), 1.0, float(tr_R), 1.0
-            else:
-                trace_P += self.trace_Q
-                rho = self._gain(m, trace_P, tr_R, n)
-                m_new = (1.0 - rho) * m + rho
-                a, c = (1.0 - rho) * m / m_new, rho / m_new
-                trace_P = a * a * trace_P + c * c * tr_R
-                K = a * K + c * dK[j]
-                m = m_new
-            n += 1
-        self.K, self.m, self.trace_P, self.n_obs, self.rho = K, m, trace_P, n, rho
+        if len(trace_R) == 0:
+            return
+        self.K, self.m, self.trace_P, self.n_obs, self.rho = recursive_k_fold(
+            self.K, np.ascontiguousarray(dK, dtype=float), np.ascontiguousarray(trace_R, dtype=float), self.m,
+            self.trace_P, self.n_obs, self.rho, self.trace_Q, _GAIN_POLICY[self.solver], self.fixed_rho)
         self._q = None
-
-    def _gain(self, m: float, trace_P: float, trace_R: float, n_before: int) -> float:
-        if self.solver == "opreq":
-            return m * m * trace_P / (m * m * trace_P + trace_R)
-        if self.solver == "request":
-            return self.fixed_rho
-        return 1.0 / (n_before + 1.0)
 
     def quaternion(self) -> np.ndarray:
         """Current estimate of C_b^n(0) as [w, x, y, z] (read-only); identity before any observation. Solved once

@@ -31,7 +31,7 @@ from sinsalign.service.align.noise_check import (
     STENCIL,
     NoiseMeter,
 )
-from sinsalign.service.align.solvers import delta_K, request_noise
+from sinsalign.service.align.solvers import RecursiveK, delta_K, request_noise
 
 RNG = np.random.default_rng(27)
 # both branches of t − sin(Ωt)/Ω (its series below Ωt = 1e-3, about 14 s) and a day
@@ -58,6 +58,45 @@ def test_the_k_matrix_pairs_are_the_numpy_forms_to_the_bit(M):
     r_unit = r / np.sqrt(np.einsum("mi,mi->m", r, r))[:, None]
     assert dK.tobytes() == delta_K(b_unit, r_unit).tobytes()
     assert trace_R.tobytes() == np.trace(request_noise(b_unit, r_unit, mu), axis1=1, axis2=2).tobytes()
+
+
+def numpy_fold(solver: RecursiveK, dK: np.ndarray, trace_R: np.ndarray) -> tuple:
+    """RecursiveK's fold in Python and numpy, the arithmetic the compiled fold replaces: (K, m, tr P, n, ρ)."""
+    m, trace_P, n, K, rho = solver.m, solver.trace_P, solver.n_obs, solver.K, solver.rho
+    for j, tr_R in enumerate(trace_R):
+        if n == 0:
+            K, m, trace_P, rho = dK[j].copy(), 1.0, float(tr_R), 1.0
+        else:
+            trace_P += solver.trace_Q
+            rho = (m * m * trace_P / (m * m * trace_P + tr_R) if solver.solver == "opreq" else solver.fixed_rho
+                   if solver.solver == "request" else 1.0 / (n + 1.0))
+            m_new = (1.0 - rho) * m + rho
+            a, c = (1.0 - rho) * m / m_new, rho / m_new
+            trace_P = a * a * trace_P + c * c * tr_R
+            K = a * K + c * dK[j]
+            m = m_new
+        n += 1
+    return K, m, trace_P, n, rho
+
+
+@pytest.mark.parametrize("name", ["opreq", "request", "qmethod"])
+def test_the_k_matrix_fold_is_the_numpy_fold_to_the_bit(name):
+    """RecursiveK.fold compiled: K, m, tr P, n and ρ with the Python fold's bits, in groups of any size (the first
+    observation starting K), with process noise; the K it replaces is left as it was (a scratch copy shares it)."""
+    dK, trace_R = recursive_k_prepare(RNG.standard_normal((300, 3)), RNG.standard_normal((300, 3)),
+                                      RNG.uniform(1e-12, 1e-4, 300))
+    solver = RecursiveK(name, rho=0.05, trace_Q=1e-9)
+    start = 0
+    for size in (1, 2, 7, 90, 200):
+        expected = numpy_fold(solver, dK[start:start + size], trace_R[start:start + size])
+        before = solver.K
+        kept = before.copy()
+        solver.fold(dK[start:start + size], trace_R[start:start + size])
+        got = (solver.K, solver.m, solver.trace_P, solver.n_obs, solver.rho)
+        assert got[0].tobytes() == expected[0].tobytes() and got[1:] == expected[1:]
+        assert np.array_equal(before, kept)
+        start += size
+    assert solver.n_obs == 300
 
 
 def test_the_velocity_gained_is_numpys_to_the_last_bits():
