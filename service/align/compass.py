@@ -162,8 +162,12 @@ class CompassLoops:
         self.omega_sin = OMEGA_IE * np.sin(site.lat)
         self.omega_ie_n = site.omega_ie_n
         self._F_cache: OrderedDict[tuple, np.ndarray] = OrderedDict()   # least recently used first
+        self._F_last: tuple[tuple, np.ndarray | None] = ((), None)   # the newest key and its matrix
         self._gains_last: tuple[float, tuple] = (np.nan, ((), None))
+        # past the schedule's end the gains are its final ones: one tuple, so the cache keys compare by identity
+        self._gains_final = self._gains_from(*schedule.sigmas(schedule.final_time_s))
         self._Q_cache: dict[tuple, np.ndarray] = {}
+        self._Q_last: tuple[float, SensorGrade | None, np.ndarray | None] = (np.nan, None, None)
 
     def start(self, C_b_n: np.ndarray, C_b_b0: np.ndarray, tilt_sigma_rad: float,
               heading_sigma_rad: float, t_loop_s: float = 0.0) -> CompassState:
@@ -180,11 +184,14 @@ class CompassLoops:
         """(level K1..K3, azimuth K1..K4 or None while it is off) at loop time ``t_loop_s``."""
         if self._gains_last[0] == t_loop_s:   # a step asks twice, and the stored passes hold the loop time
             return self._gains_last[1]
-        level_sigma, azimuth_sigma = self.schedule.sigmas(t_loop_s)
+        gains = (self._gains_final if t_loop_s >= self.schedule.final_time_s
+                 else self._gains_from(*self.schedule.sigmas(t_loop_s)))
+        self._gains_last = (t_loop_s, gains)
+        return gains
+
+    def _gains_from(self, level_sigma: float, azimuth_sigma: float) -> tuple[tuple, tuple | None]:
         level = level_gains(level_sigma, self.gravity, self.radius_m)
-        azimuth = azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
-        self._gains_last = (t_loop_s, (level, azimuth))
-        return level, azimuth
+        return level, azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
 
     def commanded_rate(self, state: CompassState) -> np.ndarray:
         """ω_c (E, N, U) in rad/s from the state at the start of a step."""
@@ -260,6 +267,8 @@ class CompassLoops:
 
     def _transition(self, level: tuple, azimuth: tuple | None, earth_sign: float, dt_s: float) -> np.ndarray:
         key = (level, azimuth, earth_sign, dt_s)
+        if key == self._F_last[0]:   # already the most recently used
+            return self._F_last[1]
         F = self._F_cache.get(key)
         if F is None:
             # the schedule interpolates, so a live step on a ramp adds a key each time: the least recently used go,
@@ -270,6 +279,7 @@ class CompassLoops:
             F = self._F_cache[key] = expm(self.error_dynamics(level, azimuth, earth_sign) * dt_s)
         else:
             self._F_cache.move_to_end(key)
+        self._F_last = (key, F)
         return F
 
     def error_dynamics(self, level: tuple, azimuth: tuple | None, earth_sign: float = 1.0) -> np.ndarray:
@@ -295,6 +305,8 @@ class CompassLoops:
 
     def _process_noise(self, dt_s: float) -> np.ndarray:
         """Q (8, 8) of one step of ``dt_s``; cached (every step of a run has the same few), never written to."""
+        if dt_s == self._Q_last[0] and self.grade is self._Q_last[1]:
+            return self._Q_last[2]
         key = (dt_s, self.grade)   # the pipeline may swap the grade for the louder one the data show
         Q = self._Q_cache.get(key)
         if Q is None:
@@ -303,6 +315,7 @@ class CompassLoops:
             Q = self._Q_cache[key] = np.zeros((8, 8))
             Q[VE, VE] = Q[VN, VN] = self.grade.acc_vrw_ms_rts**2 * dt_s
             Q[PE, PE] = Q[PN, PN] = Q[PU, PU] = self.grade.gyro_arw_rad_rts**2 * dt_s
+        self._Q_last = (dt_s, self.grade, Q)
         return Q
 
     def sigma(self, state: CompassState) -> AttitudeSigma:
