@@ -148,56 +148,75 @@ def compass_steps(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, 
     return I_E, I_N, y
 
 
-def expm(const double[:, ::1] A):
-    """The matrix exponential of a small square ``A`` by scaling and squaring of a Taylor series: A scaled by 2^−s
-    to a row-sum norm of at most 0.25, nine terms, s squarings. The products add their terms in index order where
-    numpy's BLAS may not (tests/unit/test_compass_kernel.py holds it to the numpy form)."""
-    cdef Py_ssize_t n = A.shape[0], i, j, m
+cdef void _expm8(double* A, double* E) noexcept nogil:
+    """E = exp(A) of an 8×8 row-major A (overwritten: scaled) by scaling and squaring of a Taylor series: A scaled by
+    2^−s to a row-sum norm of at most 0.25, nine terms, s squarings; the products add their terms in index order."""
     cdef double norm = 0.0, row, scale, s
-    cdef int squarings = 0, k
-    if A.shape[1] != n:
-        raise ValueError("expm: A must be square")
-    for i in range(n):
+    cdef double term[64]
+    cdef double nxt[64]
+    cdef int squarings = 0, k, i, j, m
+    for i in range(8):
         row = 0.0
-        for j in range(n):
-            row = row + fabs(A[i, j])
+        for j in range(8):
+            row = row + fabs(A[8 * i + j])
         if row > norm:
             norm = row
     if norm > 0.25:
         squarings = <int>ceil(log2(norm / 0.25))
     scale = pow(2.0, <double>squarings)
-    E_out = np.empty((n, n))
-    cdef double[:, ::1] E = E_out
-    X_arr = np.empty((n, n))
-    term_arr = np.empty((n, n))
-    next_arr = np.empty((n, n))
-    cdef double[:, ::1] X = X_arr
-    cdef double[:, ::1] term = term_arr
-    cdef double[:, ::1] nxt = next_arr
-    for i in range(n):
-        for j in range(n):
-            X[i, j] = A[i, j] / scale
-            E[i, j] = 1.0 if i == j else 0.0
-            term[i, j] = E[i, j]
+    for i in range(64):
+        A[i] = A[i] / scale
+        E[i] = 1.0 if i % 9 == 0 else 0.0
+        term[i] = E[i]
     for k in range(1, 10):
-        for i in range(n):
-            for j in range(n):
+        for i in range(8):
+            for j in range(8):
                 s = 0.0
-                for m in range(n):
-                    s = s + term[i, m] * X[m, j]
-                nxt[i, j] = s / k
-        for i in range(n):
-            for j in range(n):
-                term[i, j] = nxt[i, j]
-                E[i, j] = E[i, j] + nxt[i, j]
+                for m in range(8):
+                    s = s + term[8 * i + m] * A[8 * m + j]
+                nxt[8 * i + j] = s / k
+        for i in range(64):
+            term[i] = nxt[i]
+            E[i] = E[i] + nxt[i]
     for k in range(squarings):
-        for i in range(n):
-            for j in range(n):
+        for i in range(8):
+            for j in range(8):
                 s = 0.0
-                for m in range(n):
-                    s = s + E[i, m] * E[m, j]
-                nxt[i, j] = s
-        for i in range(n):
-            for j in range(n):
-                E[i, j] = nxt[i, j]
-    return E_out
+                for m in range(8):
+                    s = s + E[8 * i + m] * E[8 * m + j]
+                nxt[8 * i + j] = s
+        for i in range(64):
+            E[i] = nxt[i]
+
+
+def transition(double K1L, double K2L, double K3L, bint azimuth_on, double K1A, double K2A, double K3A, double K4A,
+               double earth_sign, double gravity, double radius_m, double omega_cos, double omega_sin, double dt_s):
+    """F = exp(A Δ) (8, 8) of the loops' linear error model over a step of Δ seconds (module docstring): A as
+    ``CompassLoops.error_dynamics`` builds it for these gains (the azimuth gains read only with ``azimuth_on``) and
+    Earth-rate sign, times Δ, exponentiated by :func:`_expm8`."""
+    cdef double A[64]
+    cdef double wc = earth_sign * omega_cos, ws = earth_sign * omega_sin
+    cdef double K1N = K1A if azimuth_on else K1L
+    cdef double K2N = K2A if azimuth_on else K2L
+    cdef int i
+    for i in range(64):
+        A[i] = 0.0
+    # rows and columns: δV_E, δV_N, φ_E, φ_N, φ_U, I_E, I_N, y
+    A[8 * 0 + 0], A[8 * 0 + 3] = -K1L, -gravity
+    A[8 * 1 + 1], A[8 * 1 + 2] = -K1N, gravity
+    A[8 * 2 + 1], A[8 * 2 + 3], A[8 * 2 + 4] = -(1.0 + K2N) / radius_m, ws, -wc
+    A[8 * 3 + 0], A[8 * 3 + 5], A[8 * 3 + 2] = (1.0 + K2L) / radius_m, 1.0, -ws
+    A[8 * 4 + 2] = wc
+    A[8 * 5 + 0] = K3L
+    if azimuth_on:
+        A[8 * 4 + 7] = 1.0
+        A[8 * 7 + 7], A[8 * 7 + 1] = -K3A, K4A / wc
+    else:
+        A[8 * 2 + 6] = -1.0
+        A[8 * 6 + 1] = K3L
+    for i in range(64):
+        A[i] = A[i] * dt_s
+    F_out = np.empty((8, 8))
+    cdef double[:, ::1] F = F_out
+    _expm8(A, &F[0, 0])
+    return F_out

@@ -43,7 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._compass import compass_step, compass_steps, expm
+from ._compass import compass_step, compass_steps, transition
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
@@ -276,7 +276,9 @@ class CompassLoops:
             # made recompute a matrix exponential per step
             if len(self._F_cache) >= F_CACHE_SIZE:
                 self._F_cache.popitem(last=False)
-            F = self._F_cache[key] = expm(self.error_dynamics(level, azimuth, earth_sign) * dt_s)
+            K1A, K2A, K3A, K4A = _NO_AZIMUTH if azimuth is None else azimuth
+            F = self._F_cache[key] = transition(*level, azimuth is not None, K1A, K2A, K3A, K4A, earth_sign,
+                                                self.gravity, self.radius_m, self.omega_cos, self.omega_sin, dt_s)
         else:
             self._F_cache.move_to_end(key)
         self._F_last = (key, F)
