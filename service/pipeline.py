@@ -32,6 +32,11 @@ AID_COLUMN = IMU_WIDTH
 kind of its mode (``Mode.aids``, in that order), the number of the kind's newest epoch and its values."""
 
 
+_NONE_FRESH = np.zeros(0, bool)
+_NONE_FRESH.flags.writeable = False
+"""The fresh-epoch flags of a pipeline without aiding (no kinds)."""
+
+
 def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> SensorGrade:
     """The sensor grade of the configuration, with a log's datasheet keys taking precedence."""
     figures = {**{k: getattr(config.sensor, k) for k in ("gyro_bias_deg_h", "gyro_arw_deg_rth", "acc_bias_ug",
@@ -402,9 +407,11 @@ class AlignmentPipeline:
                       aid: np.ndarray | None, aid_epoch: np.ndarray | None) -> None:
         dalpha, dt_s = alpha - self._alpha_step, t_end - self._t_step
         self._alpha_step, self._t_step = alpha, t_end
-        # one Kalman update per aiding epoch: a slower aid interpolated over several steps is one measurement
-        fresh = np.zeros(len(self.mode.aids), bool) if aid_epoch is None else aid_epoch > self._step_epoch
-        self._step_epoch = np.where(fresh, aid_epoch, self._step_epoch)
+        if aid_epoch is None:
+            fresh = _NONE_FRESH
+        else:   # one Kalman update per aiding epoch: a slower aid interpolated over several steps is one measurement
+            fresh = aid_epoch > self._step_epoch
+            self._step_epoch = np.where(fresh, aid_epoch, self._step_epoch)
         self.mode.step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
         if self.motion is not None and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + self.config.disturbance.check_interval_s
@@ -416,9 +423,8 @@ class AlignmentPipeline:
         once it is at rest again the alignment restarts if the data contradict it (``action = "restart"``)."""
         if self.coarse.solver.n_obs == 0:
             return
-        heading_deg, level_deg = self.coarse.sigma(elapsed_s)
-        found = self.motion.check(elapsed_s, alpha, dcm_from_quat(self.coarse.q_b_n0), heading_deg * DEG,
-                                  level_deg * DEG)
+        found = self.motion.check(elapsed_s, alpha, dcm_from_quat(self.coarse.q_b_n0),
+                                  lambda: tuple(sigma_deg * DEG for sigma_deg in self.coarse.sigma(elapsed_s)))
         if found is None:
             return
         d = self.config.disturbance

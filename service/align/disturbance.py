@@ -24,6 +24,7 @@ base, metres per second within seconds for a driven one.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -100,10 +101,11 @@ class MotionMonitor:
         navigation frame of now."""
         return horizontal_gained(self._lat, elapsed_s, C_b0_n0, alpha, beta, alpha_from, beta_from)
 
-    def check(self, elapsed_s: float, alpha_b0: np.ndarray, C_b0_n0: np.ndarray, heading_sigma_rad: float,
-              level_sigma_rad: float) -> MotionCheck | None:
-        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 with its 1-sigma errors
-        (rad). None: the base stays still."""
+    def check(self, elapsed_s: float, alpha_b0: np.ndarray, C_b0_n0: np.ndarray,
+              sigma_rad: Callable[[], tuple[float, float]]) -> MotionCheck | None:
+        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 and what gives its
+        1-sigma (heading, level) errors (rad), asked only when the velocity calls for them (most checks find the base
+        still without). None: the base stays still."""
         beta = beta_fixed_at(self._lat, self._gravity, elapsed_s)
         slot = self._count % (self._n + 1)
         oldest = (self._count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
@@ -118,12 +120,12 @@ class MotionMonitor:
             self.window_speed_mps = speed
             # the heading's move over the window only once the velocity asks (a check every control step)
             self.suspect = speed > SUSPECT_FRACTION * self.threshold_mps and (
-                abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * heading_sigma_rad)
+                abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * sigma_rad()[0])
             if speed <= self.threshold_mps:
                 return None
             self.episode = MotionEpisode(float(self._elapsed[oldest]), self._alpha[oldest].copy(),
-                                         self._beta[oldest].copy(), self._C[oldest].copy(), heading_sigma_rad,
-                                         level_sigma_rad, elapsed_s, speed, speed)
+                                         self._beta[oldest].copy(), self._C[oldest].copy(), *sigma_rad(), elapsed_s,
+                                         speed, speed)
             return MotionCheck("moving", speed)
         window_speed, _ = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, self._alpha[oldest],
                                        self._beta[oldest])
