@@ -50,6 +50,18 @@ cdef inline void _mat3_mul(const double* A, const double* B, double* out) noexce
             out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
 
 
+cdef inline void _mat8_mul(const double* A, const double* B, double* out) noexcept nogil:
+    """out = A B of 8×8 row-major matrices, each term added in index order."""
+    cdef double s
+    cdef int i, j, k
+    for i in range(8):
+        for j in range(8):
+            s = 0.0
+            for k in range(8):
+                s = s + A[8 * i + k] * B[8 * k + j]
+            out[8 * i + j] = s
+
+
 cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, const double* dalpha_b0,
                 double dt_s, double K1L, double K2L, double K3L, bint azimuth_on, double K1A, double K2A, double K3A,
                 double K4A, double earth_sign, const double* omega_ie_n, double omega_cos, double omega_sin,
@@ -98,12 +110,7 @@ cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, 
         for j in range(3):
             C_b0_p[3 * i + j] = 1.5 * C[3 * i + j] - 0.5 * CCtC[3 * i + j]
     # P ← F P Fᵀ + Q, the upper triangle mirrored
-    for i in range(8):
-        for j in range(8):
-            s = 0.0
-            for k in range(8):
-                s = s + F[8 * i + k] * P[8 * k + j]
-            T[8 * i + j] = s
+    _mat8_mul(F, P, T)
     for i in range(8):
         for j in range(i, 8):
             s = 0.0
@@ -151,10 +158,10 @@ def compass_steps(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, 
 cdef void _expm8(double* A, double* E) noexcept nogil:
     """E = exp(A) of an 8×8 row-major A (overwritten: scaled) by scaling and squaring of a Taylor series: A scaled by
     2^−s to a row-sum norm of at most 0.25, nine terms, s squarings; the products add their terms in index order."""
-    cdef double norm = 0.0, row, scale, s
+    cdef double norm = 0.0, row, scale
     cdef double term[64]
     cdef double nxt[64]
-    cdef int squarings = 0, k, i, j, m
+    cdef int squarings = 0, k, i, j
     for i in range(8):
         row = 0.0
         for j in range(8):
@@ -169,22 +176,12 @@ cdef void _expm8(double* A, double* E) noexcept nogil:
         E[i] = 1.0 if i % 9 == 0 else 0.0
         term[i] = E[i]
     for k in range(1, 10):
-        for i in range(8):
-            for j in range(8):
-                s = 0.0
-                for m in range(8):
-                    s = s + term[8 * i + m] * A[8 * m + j]
-                nxt[8 * i + j] = s / k
+        _mat8_mul(term, A, nxt)
         for i in range(64):
-            term[i] = nxt[i]
-            E[i] = E[i] + nxt[i]
+            term[i] = nxt[i] / k
+            E[i] = E[i] + term[i]
     for k in range(squarings):
-        for i in range(8):
-            for j in range(8):
-                s = 0.0
-                for m in range(8):
-                    s = s + E[8 * i + m] * E[8 * m + j]
-                nxt[8 * i + j] = s
+        _mat8_mul(E, E, nxt)
         for i in range(64):
             E[i] = nxt[i]
 

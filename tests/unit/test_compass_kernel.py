@@ -15,11 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 from sinsalign.service.align._compass import transition
-from sinsalign.service.align.compass import CompassLoops, CompassState, GainSchedule, rotation_matrix
+from sinsalign.service.align.compass import CompassLoops, CompassState, rotation_matrix
 from sinsalign.service.align.conventions import dcm_from_euler
-from sinsalign.service.align.earth import Site
-from sinsalign.service.align.sensor_model import SensorGrade
 from sinsalign.service.config import CompassConfig
+from support.compass_loops import SITE, default_loops
 
 DT_S = 0.1
 ATTITUDE_BOUND_RAD = 1e-10
@@ -76,10 +75,7 @@ def assert_close(compiled: CompassState, reference: CompassState) -> None:
 
 def test_the_compiled_step_is_the_numpy_step_over_a_schedule_and_reverse_passes():
     rng = np.random.default_rng(2027)
-    site = Site(np.radians(39.9), np.radians(116.4), 50.0)
-    c = CompassConfig()
-    loops = CompassLoops(site, SensorGrade.from_datasheet(0.01, 0.001, 50.0, 10.0),
-                         GainSchedule(c.schedule_time_s, c.level_sigma, c.azimuth_sigma))
+    loops, site, c = default_loops(), SITE, CompassConfig()
     C_b_n = dcm_from_euler(0.3, -0.2, 1.1)
     error = dcm_from_euler(2e-3, -1e-3, 0.02)   # tilt and heading errors the loops pull in
     compiled = loops.start(error @ C_b_n, np.eye(3), 1e-3, 0.03)
@@ -117,10 +113,7 @@ def test_the_compiled_transition_is_the_numpy_matrix_exponential_over_the_schedu
     loop at every knot's gains: exp(A Δ) of the error model within 1e-13 of the largest entry of the numpy form
     (the products' terms summed in another order, each squaring doubling the difference: 2e-14 measured at 10 s, 3e-16
     at the default 0.1 s); a step of no length is the identity."""
-    site = Site(np.radians(39.9), np.radians(116.4), 50.0)
-    c = CompassConfig()
-    loops = CompassLoops(site, SensorGrade.from_datasheet(0.01, 0.001, 50.0, 10.0),
-                         GainSchedule(c.schedule_time_s, c.level_sigma, c.azimuth_sigma))
+    loops, c = default_loops(), CompassConfig()
     for t_loop_s in (0.0, *c.schedule_time_s, 1e4):
         level, azimuth = loops.gains_at(t_loop_s)
         for sign in (1.0, -1.0):

@@ -11,12 +11,10 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from sinsalign.service.align.compass import CompassLoops, CompassState, GainSchedule
+from sinsalign.service.align.compass import CompassLoops, CompassState
 from sinsalign.service.align.conventions import dcm_from_euler
-from sinsalign.service.align.earth import Site
-from sinsalign.service.align.sensor_model import SensorGrade
 from sinsalign.service.align.stored import RepeatedNavigation, StepBuffer
-from sinsalign.service.config import CompassConfig
+from support.compass_loops import SITE, default_loops
 
 STORED = 37
 PAIRS = 2
@@ -59,10 +57,7 @@ class SingleSteps:
 
 def setup() -> tuple[CompassLoops, CompassState, StepBuffer, list[np.ndarray]]:
     rng = np.random.default_rng(7)
-    site = Site(np.radians(39.9), np.radians(116.4), 50.0)
-    c = CompassConfig()
-    loops = CompassLoops(site, SensorGrade.from_datasheet(0.01, 0.001, 50.0, 10.0),
-                         GainSchedule(c.schedule_time_s, c.level_sigma, c.azimuth_sigma))
+    loops, site = default_loops(), SITE
     C_b_n = dcm_from_euler(0.3, -0.2, 1.1)
     gravity_b = C_b_n.T @ np.array([0.0, 0.0, site.gravity])
     buffer = StepBuffer(STORED)
