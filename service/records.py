@@ -34,9 +34,9 @@ def smaller_sigma_solution(coarse: AttitudeSolution, C_fine: np.ndarray, fine_he
         return coarse
     C_level = C_fine if level_fine else C_coarse
     C_b_n = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
-    return replace(coarse, q_b_n=quat_from_dcm(C_b_n),
-                   heading_sigma_deg=min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
-                   level_sigma_deg=min(fine_level_sigma_deg, coarse.level_sigma_deg))
+    return AttitudeSolution(coarse.t, quat_from_dcm(C_b_n), min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
+                            min(fine_level_sigma_deg, coarse.level_sigma_deg), coarse.rho, coarse.trace_P,
+                            coarse.n_obs)
 
 
 def coarse_record(solution: AttitudeSolution, t_epoch: float, threshold_deg: float, has_fine: bool) -> ResultRecord:

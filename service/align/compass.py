@@ -37,6 +37,7 @@ adds the bias limit and the azimuth offset −2 ε_U / σ_A.
 from __future__ import annotations
 
 import itertools
+import math
 from bisect import bisect_right
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -53,6 +54,7 @@ F_CACHE_SIZE = 256
 
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
+_RAD_TO_DEG = 180.0 / math.pi
 _NO_AZIMUTH = (0.0, 0.0, 0.0, 0.0)   # the azimuth gains the compiled step is given while its loop is off (unread)
 
 
@@ -325,7 +327,9 @@ class CompassLoops:
         bias_heading, bias_level = bias_limit_rad(self.grade, self.site.lat, self.gravity)
         _, azimuth_sigma = self.schedule.sigmas(state.t_loop_s)
         offset = 2.0 * self.grade.gyro_bias_rad_s / azimuth_sigma if state.azimuth_on and azimuth_sigma > 0 else 0.0
-        heading2 = bias_heading**2 + offset**2 + ESTIMATOR_EFFICIENCY * state.P[PU, PU]
-        level2 = bias_level**2 + ESTIMATOR_EFFICIENCY * 0.5 * (state.P[PE, PE] + state.P[PN, PN])
-        return AttitudeSigma(min(float(np.degrees(np.sqrt(heading2))), SIGMA_UNKNOWN_DEG),
-                             min(float(np.degrees(np.sqrt(level2))), SIGMA_UNKNOWN_DEG))
+        P = state.P
+        heading2 = bias_heading**2 + offset**2 + ESTIMATOR_EFFICIENCY * float(P[PU, PU])
+        level2 = bias_level**2 + ESTIMATOR_EFFICIENCY * 0.5 * (float(P[PE, PE]) + float(P[PN, PN]))
+        # numpy's degrees multiply by 180/π (math.degrees divides by π/180: another rounding)
+        return AttitudeSigma(min(math.sqrt(heading2) * _RAD_TO_DEG, SIGMA_UNKNOWN_DEG),
+                             min(math.sqrt(level2) * _RAD_TO_DEG, SIGMA_UNKNOWN_DEG))
