@@ -168,26 +168,20 @@ cdef Py_ssize_t _number(const char* s, Py_ssize_t p, double* value) noexcept nog
     return p
 
 
-def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
-    """The data rows of ``text`` (lines, each ended by a newline) as an (N, ncols) float64 array, every value
-    finite; None where the chunk holds anything beyond plain rows, blank lines and comments in ASCII, or a line of
-    more than ``max_line_chars`` characters (the newline included)."""
-    if not text.isascii():
-        return None
-    cdef Py_ssize_t n
-    cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
-    cdef Py_ssize_t p = 0, end, line_start = 0, row = 0, rows = text.count("\n") + 1
+cdef Py_ssize_t _parse(const char* s, Py_ssize_t n, int ncols, Py_ssize_t max_line_chars,
+                       double* o) noexcept nogil:
+    """The rows of ``s[:n]`` into ``o`` (row-major, ``ncols`` a row, room for every line): how many, or -1 where the
+    text holds anything beyond plain rows (:func:`parse_rows`)."""
+    cdef Py_ssize_t p = 0, end, line_start = 0, row = 0
     cdef int col
     cdef double value
-    out = np.empty((rows, ncols))
-    cdef double[:, ::1] o = out
     while p < n:
         while _blank(s[p]):
             p += 1
         if s[p] == b'\n':
             p += 1
             if p - line_start > max_line_chars:
-                return None
+                return -1
             line_start = p
             continue
         if s[p] == b'#':
@@ -195,7 +189,7 @@ def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
                 p += 1
             p += 1
             if p - line_start > max_line_chars:
-                return None
+                return -1
             line_start = p
             continue
         if p >= n:
@@ -206,8 +200,8 @@ def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
                 p += 1
             end = _number(s, p, &value)
             if end < 0 or col >= ncols or not isfinite(value):
-                return None
-            o[row, col] = value
+                return -1
+            o[row * ncols + col] = value
             col += 1
             p = end
             while _blank(s[p]):
@@ -217,12 +211,28 @@ def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
             elif s[p] == b'\n' or p >= n:
                 break
             else:
-                return None
+                return -1
         if col != ncols:
-            return None
+            return -1
         row += 1
         p += 1
         if p - line_start > max_line_chars:
-            return None
+            return -1
         line_start = p
-    return out[:row]
+    return row
+
+
+def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
+    """The data rows of ``text`` (lines, each ended by a newline) as an (N, ncols) float64 array, every value
+    finite; None where the chunk holds anything beyond plain rows, blank lines and comments in ASCII, or a line of
+    more than ``max_line_chars`` characters (the newline included). The pass runs without the interpreter's lock, so
+    a reader thread parses while another runs the alignment."""
+    if not text.isascii():
+        return None
+    cdef Py_ssize_t n, rows
+    cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
+    out = np.empty((text.count("\n") + 1, ncols))
+    cdef double[:, ::1] o = out
+    with nogil:
+        rows = _parse(s, n, ncols, max_line_chars, &o[0, 0])
+    return None if rows < 0 else out[:rows]

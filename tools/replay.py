@@ -9,6 +9,7 @@ from typing import Any, TextIO
 
 from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
 from sinsalign.protocol.imu_log import open_imu_log
+from sinsalign.protocol.read_ahead import read_ahead
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.service.aiding import AidingFeed, AidingTrack, aid_rows
 from sinsalign.service.align.conventions import DEG
@@ -112,7 +113,7 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     try:
         with out, _progress_bar(show) as bar:
             task = bar.add_task("replay", total=size, info="")
-            for restart, t, dtheta, dv in log.segments(limits=log.limits):
+            for restart, t, dtheta, dv in read_ahead(log.segments(limits=log.limits)):
                 if restart is not None:
                     alignment.restart()
                 if len(t) == 0:
