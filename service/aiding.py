@@ -21,6 +21,7 @@ clock mismatch) fills it to ``capacity`` epochs; beyond that new epochs are drop
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -98,7 +99,7 @@ class AidingTrack:
         # a gap (0.0), the values. Judged once, as the epoch arrives: the same whenever the track is asked
         self._epochs = np.empty((64, _VALUES + width))
         self._n = 0
-        self._intervals = np.full(INTERVAL_HISTORY, np.nan)
+        self._intervals: deque[float] = deque(maxlen=INTERVAL_HISTORY)   # the latest intervals (s), oldest first
 
     @classmethod
     def for_kind(cls, kind: str, latency_s: float = 0.0, max_gap_s: float = 1.0) -> AidingTrack:
@@ -138,8 +139,7 @@ class AidingTrack:
             if last is not None:
                 bridged = float(t - last <= self.gap_s(t - last))
                 self.counters.gaps += int(not bridged)
-                # a ring: the median does not care about the order
-                self._intervals[(self.counters.epochs - 1) % INTERVAL_HISTORY] = t - last
+                self._intervals.append(float(t - last))
             self._epochs = with_room(self._epochs, self._n + 1, self.capacity)
             self._epochs[self._n, :_VALUES] = t, self.counters.epochs, bridged
             self._epochs[self._n, _VALUES:] = row[1:]
@@ -156,8 +156,11 @@ class AidingTrack:
     def usual_interval_s(self) -> float | None:
         """The stream's usual interval between epochs (s): the median of its last :data:`INTERVAL_HISTORY`; None
         before two epochs."""
-        seen = self._intervals[np.isfinite(self._intervals)]
-        return float(np.median(seen)) if len(seen) else None
+        if not self._intervals:
+            return None
+        ordered = sorted(self._intervals)   # a few floats: numpy's median costs 10 µs a call, at every epoch
+        middle = len(ordered) // 2
+        return ordered[middle] if len(ordered) % 2 else (ordered[middle - 1] + ordered[middle]) / 2.0
 
     @property
     def latest_time(self) -> float | None:
