@@ -117,3 +117,20 @@ def integrate(double[::1] q_b_b0, double[::1] alpha_b0, double[::1] dtheta_prev,
     _integrate(&q_b_b0[0], &alpha_b0[0], &dtheta_prev[0], &dv_prev[0], &dtheta[0, 0], &dv[0, 0], n, block_samples,
                &q[0, 0], &alpha[0, 0])
     return q_out, alpha_out
+
+
+def prefix_product(double[:, :, ::1] P):
+    """In place, along the middle axis of P (B, N, 4): P_k ← P_0 ⊗ … ⊗ P_k, by the Hillis-Steele scan in numpy's
+    order (each pass takes the previous pass's elements: run from the end, an element's partner is not yet
+    overwritten), the same bits as ``strapdown.prefix_quat_product``'s numpy form."""
+    cdef Py_ssize_t batches = P.shape[0], n = P.shape[1], b, i, step
+    if P.shape[2] != 4:
+        raise ValueError("prefix_product: quaternions of 4 components along the last axis")
+    for b in range(batches):
+        step = 1
+        while step < n:
+            i = n - 1
+            while i >= step:
+                _quat_product(&P[b, i - step, 0], &P[b, i, 0], &P[b, i, 0])
+                i -= 1
+            step *= 2

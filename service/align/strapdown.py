@@ -18,17 +18,15 @@ from __future__ import annotations
 import numpy as np
 
 from ._strapdown import integrate as integrate_blocks
-from .conventions import quat_multiply
+from ._strapdown import prefix_product
 
 
 def prefix_quat_product(r: np.ndarray) -> np.ndarray:
-    """P_k = r_0 ⊗ r_1 ⊗ … ⊗ r_k along the second-last axis of r (..., N, 4) (Hillis-Steele scan)."""
-    P = np.array(r, dtype=float)
-    n = P.shape[-2]
-    step = 1
-    while step < n:
-        P[..., step:, :] = quat_multiply(P[..., :-step, :], P[..., step:, :])
-        step *= 2
+    """P_k = r_0 ⊗ r_1 ⊗ … ⊗ r_k along the second-last axis of r (..., N, 4) (Hillis-Steele scan, compiled:
+    _strapdown.prefix_product)."""
+    P = np.array(r, dtype=float, order="C")
+    if P.size:
+        prefix_product(P.reshape(-1, *P.shape[-2:]))   # a view of the fresh copy: scanned in place
     return P
 
 

@@ -19,6 +19,25 @@ from sinsalign.tools.sim.imu import ImuErrors, simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
 
+def numpy_prefix_product(r: np.ndarray) -> np.ndarray:
+    """The Hillis-Steele scan in numpy along the second-last axis, the arithmetic the compiled one replaces."""
+    P = np.array(r, dtype=float)
+    step = 1
+    while step < P.shape[-2]:
+        P[..., step:, :] = quat_multiply(P[..., :-step, :], P[..., step:, :])
+        step *= 2
+    return P
+
+
+@pytest.mark.parametrize("shape", [(0, 4), (1, 4), (2, 4), (37, 4), (1200, 4), (5, 20, 4), (3, 0, 4)])
+def test_the_compiled_prefix_product_is_the_numpy_scan_to_the_bit(shape):
+    r = quat_from_rotvec(0.3 * np.random.default_rng(8).standard_normal((*shape[:-1], 3)))
+    got = prefix_quat_product(r)
+    assert got.shape == shape and got.tobytes() == numpy_prefix_product(r).tobytes()
+    transposed = np.asfortranarray(r)   # any memory order in, the same scan out
+    assert prefix_quat_product(transposed).tobytes() == got.tobytes()
+
+
 def test_prefix_product_equals_sequential_product():
     rng = np.random.default_rng(3)
     r = quat_from_rotvec(0.3 * rng.standard_normal((37, 3)))
@@ -36,7 +55,7 @@ def _numpy_integrate(state: list[np.ndarray], dtheta: np.ndarray, dv: np.ndarray
     dtheta_prev = np.concatenate((dtheta_prev0[None], dtheta[:-1]))
     dv_prev = np.concatenate((dv_prev0[None], dv[:-1]))
     phi = dtheta + cross(dtheta_prev, dtheta) / 12.0
-    local = prefix_quat_product(quat_from_rotvec(phi).reshape(-1, M, 4))
+    local = numpy_prefix_product(quat_from_rotvec(phi).reshape(-1, M, 4))
     rotated = cross(dtheta, dv)
     dv_body = (dv + 0.5 * rotated + cross(dtheta, rotated) / 6.0
                + (cross(dtheta_prev, dv) + cross(dv_prev, dtheta)) / 12.0).reshape(-1, M, 3)
