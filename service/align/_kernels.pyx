@@ -65,27 +65,70 @@ def C_n_n0_fixed_at(double lat, double t):
     return out
 
 
-def horizontal_gained(double lat, double elapsed_s, const double[:, :] C_b0_n0, const double[:] alpha,
-                      const double[:] beta, const double[:] alpha_from, const double[:] beta_from):
-    """(|horizontal velocity gained| m/s, |horizontal turn of β| m/s) from the ``_from`` instant to ``elapsed_s``, in
-    the navigation frame of then: C_n0^n (C_b0^n0 (α − α_from) − (β − β_from)) and C_n0^n (β − β_from)."""
+cdef void _horizontal(double lat, double elapsed_s, const double* C_b0_n0, const double* alpha, const double* beta,
+                      const double* alpha_from, const double* beta_from, double* out) noexcept nogil:
+    """out = (|horizontal velocity gained|, |horizontal turn of β|) (m/s): :func:`horizontal_gained` on row-major
+    C_b0^n0 (9) and 3-vectors."""
     cdef double C[9]
     cdef double dalpha[3]
     cdef double dbeta[3]
     cdef double moved[3]
     cdef double gained[2]
     cdef double turn[2]
-    cdef int i, j
+    cdef int i
     _C_n_n0_fixed(lat, elapsed_s, C)
     for i in range(3):
         dalpha[i] = alpha[i] - alpha_from[i]
         dbeta[i] = beta[i] - beta_from[i]
     for i in range(3):
-        moved[i] = C_b0_n0[i, 0] * dalpha[0] + C_b0_n0[i, 1] * dalpha[1] + C_b0_n0[i, 2] * dalpha[2] - dbeta[i]
+        moved[i] = C_b0_n0[3 * i] * dalpha[0] + C_b0_n0[3 * i + 1] * dalpha[1] + C_b0_n0[3 * i + 2] * dalpha[2] \
+            - dbeta[i]
     for i in range(2):   # row i of C_n0^n is column i of C_n^n0
         gained[i] = C[i] * moved[0] + C[3 + i] * moved[1] + C[6 + i] * moved[2]
         turn[i] = C[i] * dbeta[0] + C[3 + i] * dbeta[1] + C[6 + i] * dbeta[2]
-    return sqrt(gained[0] * gained[0] + gained[1] * gained[1]), sqrt(turn[0] * turn[0] + turn[1] * turn[1])
+    out[0] = sqrt(gained[0] * gained[0] + gained[1] * gained[1])
+    out[1] = sqrt(turn[0] * turn[0] + turn[1] * turn[1])
+
+
+def horizontal_gained(double lat, double elapsed_s, const double[:, :] C_b0_n0, const double[:] alpha,
+                      const double[:] beta, const double[:] alpha_from, const double[:] beta_from):
+    """(|horizontal velocity gained| m/s, |horizontal turn of β| m/s) from the ``_from`` instant to ``elapsed_s``, in
+    the navigation frame of then: C_n0^n (C_b0^n0 (α − α_from) − (β − β_from)) and C_n0^n (β − β_from)."""
+    cdef double C[9]
+    cdef double a[3]
+    cdef double b[3]
+    cdef double a_from[3]
+    cdef double b_from[3]
+    cdef double out[2]
+    cdef int i, j
+    for i in range(3):   # any strides in (the monitor may pass a transposed view): copied as they read
+        for j in range(3):
+            C[3 * i + j] = C_b0_n0[i, j]
+        a[i], b[i], a_from[i], b_from[i] = alpha[i], beta[i], alpha_from[i], beta_from[i]
+    _horizontal(lat, elapsed_s, C, a, b, a_from, b_from, out)
+    return out[0], out[1]
+
+
+def store_and_gain(double lat, double gravity, double elapsed_s, const double[::1] alpha_b0,
+                   const double[:, ::1] C_b0_n0, double[::1] ring_elapsed, double[:, ::1] ring_alpha,
+                   double[:, ::1] ring_beta, double[:, :, ::1] ring_C, Py_ssize_t slot, Py_ssize_t oldest,
+                   bint gain):
+    """One motion check's entry into the monitor's ring at ``slot``: the time (s), α (3,) m/s in b0 axes, β of the
+    fixed site there (:func:`beta_fixed_at`) and C_b0^n0 (3, 3); with ``gain``, the horizontal velocity (m/s) gained
+    since the entry at ``oldest`` under that entry's C_b0^n0 (:func:`horizontal_gained`), else NaN."""
+    cdef int i, j
+    cdef double out[2]
+    ring_elapsed[slot] = elapsed_s
+    _beta_fixed(lat, gravity, elapsed_s, &ring_beta[slot, 0])
+    for i in range(3):
+        ring_alpha[slot, i] = alpha_b0[i]
+        for j in range(3):
+            ring_C[slot, i, j] = C_b0_n0[i, j]
+    if not gain:
+        return float("nan")
+    _horizontal(lat, elapsed_s, &ring_C[oldest, 0, 0], &ring_alpha[slot, 0], &ring_beta[slot, 0],
+                &ring_alpha[oldest, 0], &ring_beta[oldest, 0], out)
+    return out[0]
 
 
 cdef inline long _pymod(long a, long n) noexcept nogil:

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import beta_fixed_at, horizontal_gained
+from ._kernels import horizontal_gained, store_and_gain
 from .conventions import misalignment
 from .earth import Site
 
@@ -106,17 +106,16 @@ class MotionMonitor:
         """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 and what gives its
         1-sigma (heading, level) errors (rad), asked only when the velocity calls for them (most checks find the base
         still without). None: the base stays still."""
-        beta = beta_fixed_at(self._lat, self._gravity, elapsed_s)
         slot = self._count % (self._n + 1)
         oldest = (self._count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
-        self._elapsed[slot], self._alpha[slot], self._beta[slot], self._C[slot] = elapsed_s, alpha_b0, beta, C_b0_n0
         self._count += 1
+        episode = self.episode
+        # the entry stored (β there computed), and with the window full and no episode its velocity gained
+        speed = store_and_gain(self._lat, self._gravity, elapsed_s, alpha_b0, C_b0_n0, self._elapsed, self._alpha,
+                               self._beta, self._C, slot, oldest, self._count > self._n and episode is None)
         if self._count <= self._n:
             return None
-        episode = self.episode
         if episode is None:
-            speed, _ = self._gained(self._C[oldest], elapsed_s, alpha_b0, beta, self._alpha[oldest],
-                                    self._beta[oldest])
             self.window_speed_mps = speed
             # the heading's move over the window only once the velocity asks (a check every control step)
             self.suspect = speed > SUSPECT_FRACTION * self.threshold_mps and (
@@ -127,6 +126,7 @@ class MotionMonitor:
                                          self._beta[oldest].copy(), self._C[oldest].copy(), *sigma_rad(), elapsed_s,
                                          speed, speed)
             return MotionCheck("moving", speed)
+        beta = self._beta[slot]
         window_speed, _ = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, self._alpha[oldest],
                                        self._beta[oldest])
         self.window_speed_mps = window_speed

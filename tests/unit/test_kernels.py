@@ -19,6 +19,7 @@ from sinsalign.service.align._kernels import (
     beta_fixed_many,
     horizontal_gained,
     recursive_k_prepare,
+    store_and_gain,
     weighted_nonnegative_fit,
 )
 from sinsalign.service.align.conventions import dcm_from_euler
@@ -111,6 +112,27 @@ def test_the_velocity_gained_is_numpys_to_the_last_bits():
         # the transposed view as the monitor passes it: strided input is read as it is
         got = horizontal_gained(lat, t, C_b0_n0.T.T, alpha, beta, alpha_from, beta_from)
         np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-13 * np.abs(alpha).max())
+
+
+def test_the_motion_ring_entry_and_speed_are_the_separate_kernels_to_the_bit():
+    """store_and_gain: the entry holds the time, α, β of the fixed site there and C_b0^n0 as given, and the speed
+    gained since another entry is horizontal_gained's over those (the same bits); without ``gain``, NaN."""
+    n = 5
+    ring = np.full(n, np.nan), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3, 3))
+    for k, (t, lat) in enumerate(zip(TIMES_S[:40], LATS[:40], strict=True)):
+        alpha = RNG.normal(0.0, 100.0, 3)
+        C_b0_n0 = dcm_from_euler(*RNG.uniform(-np.pi, np.pi, 3))
+        slot, oldest = k % n, (k + 1) % n
+        speed = store_and_gain(lat, 9.79, t, alpha, C_b0_n0, *ring, slot, oldest, k >= n - 1)
+        assert ring[0][slot] == t and ring[1][slot].tobytes() == alpha.tobytes()
+        assert ring[2][slot].tobytes() == beta_fixed_at(lat, 9.79, t).tobytes()
+        assert ring[3][slot].tobytes() == C_b0_n0.tobytes()
+        if k < n - 1:
+            assert np.isnan(speed)
+        else:
+            expected, _ = horizontal_gained(lat, t, ring[3][oldest], alpha, ring[2][slot], ring[1][oldest],
+                                            ring[2][oldest])
+            assert speed == expected
 
 
 def reference_meter(meter: NoiseMeter, elapsed_s: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, ...]:
