@@ -379,7 +379,8 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
     """
     line_no, t_last = first_line, -math.inf
     for text in _whole_lines(stream):
-        # a piece without its line end is the file's last, cut short: the line reader names that line
+        # a piece without its line end (the file cut inside its last line, or the start of a line too long) goes to
+        # the line reader, which names that line
         whole = text.endswith("\n") and RESTART_MARKER not in text
         block = parse_rows(text, len(columns), MAX_LINE_CHARS) if whole else None
         if block is None or not _acceptable(block, columns, limits, increasing, t_last):

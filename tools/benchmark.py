@@ -182,11 +182,13 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
         # delay the subscriber's arrival stamps
         gc.collect()
         gc.freeze()
-        for k in range(len(t)):   # one frame at a time, stamping the write
-            player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
-            written[k] = time.monotonic()
-        time.sleep(0.5)
-        gc.unfreeze()
+        try:
+            for k in range(len(t)):   # one frame at a time, stamping the write
+                player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
+                written[k] = time.monotonic()
+            time.sleep(0.5)
+        finally:
+            gc.unfreeze()
         cpu_share = (daemon.cpu_seconds() - cpu0) / (time.monotonic() - wall0)
         latency = np.array([daemon.arrivals[round(tk, 6)] - wk for tk, wk in zip(t, written, strict=True)
                             if round(tk, 6) in daemon.arrivals] or [np.nan]) * 1e3

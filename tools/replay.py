@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import os
 import sys
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -111,9 +112,10 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     partial = out_path.with_name(f".{out_path.name}.partial")
     out = _open_partial(partial, out_path)
     try:
-        with out, _progress_bar(show) as bar:
+        # the reading thread stops with the replay, however it ends
+        with out, _progress_bar(show) as bar, closing(read_ahead(log.segments(limits=log.limits))) as blocks:
             task = bar.add_task("replay", total=size, info="")
-            for restart, t, dtheta, dv in read_ahead(log.segments(limits=log.limits)):
+            for restart, t, dtheta, dv in blocks:
                 if restart is not None:
                     alignment.restart()
                 if len(t) == 0:

@@ -1,13 +1,16 @@
 # cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
-"""The compass loops' control step compiled (built at install; docs/performance.md).
+"""The compass loops compiled (built at install; docs/performance.md): the control step, a stretch of steps at
+held gains, and the transition matrix of the loops' error model.
 
-One call does what :meth:`service.align.compass.CompassLoops.step` describes for one step of Δ seconds: the commanded
+One step does what :meth:`service.align.compass.CompassLoops.step` describes for one step of Δ seconds: the commanded
 rate from the state at the step's start, the platform turned by half the step either side of the velocity update,
 the level integrators or the azimuth command, the first-order re-orthonormalisation, and the covariance
-P ← F P Fᵀ + Q. Elementwise formulas are numpy's (the same libm sin, cos and pow, no fused multiply-adds: compiled
-with -ffp-contract=off); the 3×3 and 8×8 products add their terms in index order where numpy's BLAS may add them in
-another, so the state agrees with the numpy arithmetic to the last few bits (tests/unit/test_kernels.py). P is made
-exactly symmetric: its upper triangle is computed and mirrored.
+P ← F P Fᵀ + Q. :func:`compass_steps` loops that step over a stored-data pass's stretch; :func:`transition` builds
+the error model A and gives exp(A Δ). Elementwise formulas are numpy's (the same libm sin, cos and pow, no fused
+multiply-adds: compiled with -ffp-contract=off); the 3×3 and 8×8 products add their terms in index order where numpy's
+BLAS may add them in another, so the state agrees with the numpy arithmetic to the last few bits
+(tests/unit/test_compass_kernel.py, tests/unit/test_stored_passes.py). P is made exactly symmetric: its upper
+triangle is computed and mirrored.
 
 Frames and units as in compass.py: C_{b0}^{p} (3, 3), V^p (E, N) m/s, rates rad/s, Δα m/s in b0 axes.
 """
@@ -143,12 +146,16 @@ def compass_steps(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, 
     """:func:`compass_step` over N steps at fixed gains (Δα (N, 3), Δ (N,)), step k with ``F[which[k]]`` and
     ``Q[which[k]]``: the same arithmetic in the same order as N calls; returns the new (I_E, I_N, y)."""
     cdef Py_ssize_t k, n = dt_s.shape[0], m
-    if dalpha_b0.shape[0] != n or which.shape[0] != n:
-        raise ValueError("compass_steps: dalpha_b0, dt_s and which need one row per step")
+    if dalpha_b0.shape[0] != n or dalpha_b0.shape[1] != 3 or which.shape[0] != n:
+        raise ValueError("compass_steps: dalpha_b0 (N, 3), dt_s (N,) and which (N,): one row per step")
+    if F.shape[0] != Q.shape[0] or F.shape[1] != 8 or F.shape[2] != 8 or Q.shape[1] != 8 or Q.shape[2] != 8 \
+            or P.shape[0] != 8 or P.shape[1] != 8 or C_b0_p.shape[0] != 3 or C_b0_p.shape[1] != 3 or V.shape[0] != 2:
+        raise ValueError("compass_steps: F and Q (K, 8, 8), P (8, 8), C_b0_p (3, 3), V (2,)")
+    for k in range(n):   # every index checked before the state moves
+        if which[k] < 0 or which[k] >= F.shape[0]:
+            raise IndexError("compass_steps: which names no transition")
     for k in range(n):
         m = which[k]
-        if m < 0 or m >= F.shape[0] or m >= Q.shape[0]:
-            raise IndexError("compass_steps: which names no transition")
         _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, &dalpha_b0[k, 0], dt_s[k], K1L, K2L, K3L, azimuth_on, K1A, K2A,
               K3A, K4A, earth_sign, &omega_ie_n[0], omega_cos, omega_sin, radius_m, &F[m, 0, 0], &Q[m, 0, 0],
               &P[0, 0])

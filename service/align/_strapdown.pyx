@@ -30,12 +30,24 @@ cdef inline void _from_rotvec(const double* phi, double* q) noexcept nogil:
     q[1], q[2], q[3] = k * phi[0], k * phi[1], k * phi[2]
 
 
+cdef void _scan(double* P, Py_ssize_t n) noexcept nogil:
+    """P_k ← P_0 ⊗ … ⊗ P_k over n quaternions in place, by the Hillis-Steele scan: P[s:] = P[:-s] ⊗ P[s:] for
+    s = 1, 2, 4 …, each pass from the top down so every right-hand side is the previous pass's (numpy's order)."""
+    cdef Py_ssize_t step = 1, k
+    while step < n:
+        k = n - 1
+        while k >= step:
+            _quat_product(P + 4 * (k - step), P + 4 * k, P + 4 * k)
+            k -= 1
+        step *= 2
+
+
 cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, double* dv_prev,
                      const double* dtheta, const double* dv, long n, long M, double* q, double* alpha) noexcept nogil:
     """The chunk's n samples (n a multiple of M) into q (n, 4) and α (n, 3), the state arrays updated in place.
     Block by block: the block's rotations and body-frame Δv, their prefix product chained to the block's start, then
     Δv rotated by the attitude at each sample's start and summed from the block's start."""
-    cdef long block, start, k, i, step
+    cdef long block, start, k, i
     cdef double cr[3]
     cdef double cr2[3]
     cdef double rotated[3]
@@ -71,12 +83,7 @@ cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, doub
             body = alpha + 3 * k
             for i in range(3):
                 body[i] = v[i] + 0.5 * rotated[i] + turned[i] / 6.0 + (cr[i] + cr2[i]) / 12.0
-        # Hillis-Steele: P[s:] = P[:-s] ⊗ P[s:], from the top down so every right-hand side is the previous step's
-        step = 1
-        while step < M:
-            for k in range(M - 1, step - 1, -1):
-                _quat_product(P + 4 * (k - step), P + 4 * k, P + 4 * k)
-            step *= 2
+        _scan(P, M)
         for k in range(start, start + M):
             _quat_product(first, q + 4 * k, q + 4 * k)
             _normalize(q + 4 * k)
@@ -123,14 +130,8 @@ def prefix_product(double[:, :, ::1] P):
     """In place, along the middle axis of P (B, N, 4): P_k ← P_0 ⊗ … ⊗ P_k, by the Hillis-Steele scan in numpy's
     order (each pass takes the previous pass's elements: run from the end, an element's partner is not yet
     overwritten), the same bits as ``strapdown.prefix_quat_product``'s numpy form."""
-    cdef Py_ssize_t batches = P.shape[0], n = P.shape[1], b, i, step
+    cdef Py_ssize_t b
     if P.shape[2] != 4:
         raise ValueError("prefix_product: quaternions of 4 components along the last axis")
-    for b in range(batches):
-        step = 1
-        while step < n:
-            i = n - 1
-            while i >= step:
-                _quat_product(&P[b, i - step, 0], &P[b, i, 0], &P[b, i, 0])
-                i -= 1
-            step *= 2
+    for b in range(P.shape[0]):
+        _scan(&P[b, 0, 0], P.shape[1])

@@ -54,7 +54,6 @@ F_CACHE_SIZE = 256
 
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
-_RAD_TO_DEG = 180.0 / math.pi
 _NO_AZIMUTH = (0.0, 0.0, 0.0, 0.0)   # the azimuth gains the compiled step is given while its loop is off (unread)
 
 
@@ -330,6 +329,5 @@ class CompassLoops:
         P = state.P
         heading2 = bias_heading**2 + offset**2 + ESTIMATOR_EFFICIENCY * float(P[PU, PU])
         level2 = bias_level**2 + ESTIMATOR_EFFICIENCY * 0.5 * (float(P[PE, PE]) + float(P[PN, PN]))
-        # numpy's degrees multiply by 180/π (math.degrees divides by π/180: another rounding)
-        return AttitudeSigma(min(math.sqrt(heading2) * _RAD_TO_DEG, SIGMA_UNKNOWN_DEG),
-                             min(math.sqrt(level2) * _RAD_TO_DEG, SIGMA_UNKNOWN_DEG))
+        return AttitudeSigma(min(math.degrees(math.sqrt(heading2)), SIGMA_UNKNOWN_DEG),
+                             min(math.degrees(math.sqrt(level2)), SIGMA_UNKNOWN_DEG))

@@ -39,9 +39,9 @@ if TYPE_CHECKING:
 
 SOLVERS = ("opreq", "request", "qmethod", "centred", "gls")
 ALIGNMENT_SOLVERS = ("auto", *SOLVERS)
+"""What ``alignment.solver`` takes: "auto" picks OPREQ or GLS from the datasheet (sensor_model.auto_solver)."""
 _GAIN_POLICY = {"opreq": 0, "request": 1, "qmethod": 2}
 """The compiled fold's code of each recursive solver's gain (_kernels.recursive_k_fold)."""
-"""What ``alignment.solver`` takes: "auto" picks OPREQ or GLS from the datasheet (sensor_model.auto_solver)."""
 
 
 def davenport(B: np.ndarray) -> np.ndarray:

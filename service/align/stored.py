@@ -7,9 +7,10 @@ for the configured number of pairs, then catches up on the steps that arrived me
 replaces the live state. The passes keep the gain schedule where it was (the loop stays as wide
 as it was when the buffer filled) and consume no schedule time.
 
-The work is a generator of single steps, so the caller decides how much runs per call: all of it
-in offline replay, a bounded slice per live block in the daemon. Both run the same steps on the
-same data in the same order, so the state that comes out is bit-identical.
+The caller decides how many steps run per call: all of them in offline replay, a bounded slice per
+live block in the daemon. Each call runs its stretch of a pass in one compiled loop
+(:meth:`CompassLoops.steps_held`), the same steps on the same data in the same order as one at a
+time, so the state that comes out is bit-identical however the passes are sliced.
 """
 from __future__ import annotations
 
@@ -66,7 +67,7 @@ class RepeatedNavigation:
         """Run up to ``max_steps`` (≥ 1) pass steps, a pass's stretch in one compiled call; how many ran (0: the
         passes are over)."""
         n = self.buffer.count
-        if self._done_in_pass == n:
+        while self._done_in_pass == n:   # once, but for an empty store: every pass turns round and ends at once
             if self._pass == 2 * self.pairs:
                 return 0
             self.loops.reverse(self.state)

@@ -85,6 +85,16 @@ def test_a_gap_is_judged_against_the_streams_own_rate():
     assert fast.counters.gaps == 1 and np.isnan(fast.values_at(np.array([1.7]))[0, 0])
 
 
+@given(st.lists(st.floats(1e-4, 10.0), min_size=1, max_size=40))
+def test_the_usual_interval_is_the_median_of_the_last_16(intervals: list[float]) -> None:
+    """Odd and even counts, fewer and more than 16 intervals: numpy's median of the latest ones, to the bit."""
+    track = AidingTrack(1, max_gap_s=1e9)
+    t = np.cumsum([0.0, *intervals])
+    track.push(np.column_stack((t, t)))
+    steps = np.diff(t)
+    assert track.usual_interval_s == float(np.median(steps[-16:]))
+
+
 def test_each_value_carries_the_number_of_the_newest_epoch_at_or_before_it():
     """The number tells an estimator whether a sample brings a new epoch: samples between the same two epochs
     carry the earlier one's, a sample at an epoch carries that one's, a sample with no values NaN."""

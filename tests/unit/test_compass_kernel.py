@@ -32,7 +32,8 @@ into a heading ε / (Ω cos L), 2e4 s at this latitude, so 1e-16 rad per 0.1-s s
 
 def numpy_step(loops: CompassLoops, state: CompassState, dalpha_b0: np.ndarray, dt_s: float,
                advance_schedule: bool = True) -> None:
-    """The control step in numpy (compass.py's module docstring), the arithmetic the compiled step replaces."""
+    """The control step in numpy (compass.py's module docstring), the form the kernel must match, its transition
+    matrix the numpy exponential of the error model."""
     level, azimuth = loops.gains_at(state.t_loop_s)
     if azimuth is not None and not state.azimuth_on:
         state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
@@ -56,7 +57,7 @@ def numpy_step(loops: CompassLoops, state: CompassState, dalpha_b0: np.ndarray, 
         state.I_N += K3L * V_N * dt_s
     C = half_turn @ (half_turn @ state.C_b0_p)
     state.C_b0_p = 1.5 * C - 0.5 * C @ C.T @ C
-    F = loops._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, dt_s)
+    F = numpy_expm(loops.error_dynamics(level, azimuth if state.azimuth_on else None, state.earth_sign) * dt_s)
     state.P = F @ state.P @ F.T + loops._process_noise(dt_s)
     if advance_schedule:
         state.t_loop_s += dt_s
@@ -94,7 +95,7 @@ def test_the_compiled_step_is_the_numpy_step_over_a_schedule_and_reverse_passes(
 
 
 def numpy_expm(A: np.ndarray) -> np.ndarray:
-    """The matrix exponential in numpy, the arithmetic the compiled one replaces: scaling to a row-sum norm of at
+    """The matrix exponential in numpy, the form the compiled one must match: scaling to a row-sum norm of at
     most 0.25, nine Taylor terms, squarings."""
     norm = float(np.abs(A).sum(axis=1).max())
     squarings = max(0, int(np.ceil(np.log2(norm / 0.25))) if norm > 0.25 else 0)

@@ -62,7 +62,7 @@ def test_the_k_matrix_pairs_are_the_numpy_forms_to_the_bit(M):
 
 
 def numpy_fold(solver: RecursiveK, dK: np.ndarray, trace_R: np.ndarray) -> tuple:
-    """RecursiveK's fold in Python and numpy, the arithmetic the compiled fold replaces: (K, m, tr P, n, ρ)."""
+    """RecursiveK's fold in Python and numpy, the form the compiled fold must match: (K, m, tr P, n, ρ)."""
     m, trace_P, n, K, rho = solver.m, solver.trace_P, solver.n_obs, solver.K, solver.rho
     for j, tr_R in enumerate(trace_R):
         if n == 0:

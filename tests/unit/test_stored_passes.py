@@ -55,7 +55,7 @@ class SingleSteps:
         return self.passes_done and not self.catch_up
 
 
-def setup() -> tuple[CompassLoops, CompassState, StepBuffer, list[np.ndarray]]:
+def setup(t_loop_s: float) -> tuple[CompassLoops, CompassState, StepBuffer, list[np.ndarray]]:
     rng = np.random.default_rng(7)
     loops, site = default_loops(), SITE
     C_b_n = dcm_from_euler(0.3, -0.2, 1.1)
@@ -65,7 +65,7 @@ def setup() -> tuple[CompassLoops, CompassState, StepBuffer, list[np.ndarray]]:
     for k in range(STORED):
         buffer.append(gravity_b * 0.1 + rng.normal(0.0, 1e-4, 3), float(t[k + 1] - t[k]))
     assert len(np.unique(buffer.dt_s)) > 1
-    state = loops.start(dcm_from_euler(2e-3, -1e-3, 0.02) @ C_b_n, np.eye(3), 1e-3, 0.03, t_loop_s=25.0)
+    state = loops.start(dcm_from_euler(2e-3, -1e-3, 0.02) @ C_b_n, np.eye(3), 1e-3, 0.03, t_loop_s=t_loop_s)
     live = [gravity_b * 0.1 + rng.normal(0.0, 1e-4, 3) for _ in range(5)]
     return loops, state, buffer, live
 
@@ -76,9 +76,12 @@ def same(a: CompassState, b: CompassState) -> bool:
             == (b.I_E, b.I_N, b.y, b.t_loop_s, b.azimuth_on, b.earth_sign))
 
 
+@pytest.mark.parametrize("t_loop_s", [25.0, 31.0, 60.0])
 @pytest.mark.parametrize("slice_steps", [1, 5, STORED, STORED + 1, 2 * STORED, None])
-def test_passes_in_any_slices_are_the_single_steps(slice_steps: int | None) -> None:
-    loops, state, buffer, live = setup()
+def test_passes_in_any_slices_are_the_single_steps(slice_steps: int | None, t_loop_s: float) -> None:
+    """At loop times before the azimuth loop (25 s), as it takes over within the passes' held gains (31 s: its
+    first step switches it on) and on the schedule's ramp (60 s: the catch-up steps change the gains)."""
+    loops, state, buffer, live = setup(t_loop_s)
     compiled, oracle = RepeatedNavigation(loops, state, buffer, PAIRS), SingleSteps(loops, state, buffer, PAIRS)
     calls = 0
     while True:

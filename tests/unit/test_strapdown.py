@@ -20,7 +20,7 @@ from sinsalign.tools.sim.scenarios import get_scenario
 
 
 def numpy_prefix_product(r: np.ndarray) -> np.ndarray:
-    """The Hillis-Steele scan in numpy along the second-last axis, the arithmetic the compiled one replaces."""
+    """The Hillis-Steele scan in numpy along the second-last axis, the form the compiled one must match."""
     P = np.array(r, dtype=float)
     step = 1
     while step < P.shape[-2]:
