@@ -218,12 +218,11 @@ class CompassLoops:
         stored-data passes run at the bandwidth the loops had when the buffer filled.
         """
         level, azimuth = self._azimuth_switch(state)
-        K1A, K2A, K3A, K4A = azimuth if state.azimuth_on else _NO_AZIMUTH
-        F = self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, dt_s)
+        F = self._transition(level, azimuth, state.earth_sign, dt_s)
         state.I_E, state.I_N, state.y = compass_step(
             state.C_b0_p, state.V, state.I_E, state.I_N, state.y, dalpha_b0, dt_s, *level, state.azimuth_on,
-            K1A, K2A, K3A, K4A, state.earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin, self.radius_m, F,
-            self._process_noise(dt_s), state.P)
+            *(azimuth or _NO_AZIMUTH), state.earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin,
+            self.radius_m, F, self._process_noise(dt_s), state.P)
         if advance_schedule:
             state.t_loop_s += dt_s
 
@@ -231,24 +230,23 @@ class CompassLoops:
         """:meth:`step` over N control steps (Δα (N, 3) m/s, Δ (N,) s) with the loop time held (the stored-data
         passes), in one compiled call: the gains stay, so each step takes the transition of its length."""
         level, azimuth = self._azimuth_switch(state)
-        K1A, K2A, K3A, K4A = azimuth if state.azimuth_on else _NO_AZIMUTH
         lengths, which = np.unique(dt_s, return_inverse=True)
-        F = np.stack([self._transition(level, azimuth if state.azimuth_on else None, state.earth_sign, float(d))
-                      for d in lengths])
+        F = np.stack([self._transition(level, azimuth, state.earth_sign, float(d)) for d in lengths])
         Q = np.stack([self._process_noise(float(d)) for d in lengths])
         state.I_E, state.I_N, state.y = compass_steps(
             state.C_b0_p, state.V, state.I_E, state.I_N, state.y, np.ascontiguousarray(dalpha_b0),
-            np.ascontiguousarray(dt_s), *level, state.azimuth_on, K1A, K2A, K3A, K4A, state.earth_sign,
+            np.ascontiguousarray(dt_s), *level, state.azimuth_on, *(azimuth or _NO_AZIMUTH), state.earth_sign,
             self.omega_ie_n, self.omega_cos, self.omega_sin, self.radius_m, F, Q, which.astype(np.intp).reshape(-1),
             state.P)
 
     def _azimuth_switch(self, state: CompassState) -> tuple[tuple, tuple | None]:
-        """The gains at the state's loop time; the first with the azimuth loop's gains switches it on: it takes the
-        north channel over, its integrator rate is the signal now."""
+        """The level gains and the azimuth gains the step runs with (None while the azimuth loop is off) at the
+        state's loop time; the first gains of the azimuth loop switch it on: it takes the north channel over, its
+        integrator rate is the signal now."""
         level, azimuth = self._gains(state)
         if azimuth is not None and not state.azimuth_on:
             state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
-        return level, azimuth
+        return level, azimuth if state.azimuth_on else None
 
     def reverse(self, state: CompassState) -> None:
         """Turn the state round for a pass in the other time direction (see the module docstring)."""
@@ -277,8 +275,7 @@ class CompassLoops:
             # made recompute a matrix exponential per step
             if len(self._F_cache) >= F_CACHE_SIZE:
                 self._F_cache.popitem(last=False)
-            K1A, K2A, K3A, K4A = _NO_AZIMUTH if azimuth is None else azimuth
-            F = self._F_cache[key] = transition(*level, azimuth is not None, K1A, K2A, K3A, K4A, earth_sign,
+            F = self._F_cache[key] = transition(*level, azimuth is not None, *(azimuth or _NO_AZIMUTH), earth_sign,
                                                 self.gravity, self.radius_m, self.omega_cos, self.omega_sin, dt_s)
         else:
             self._F_cache.move_to_end(key)
