@@ -26,27 +26,14 @@ import numpy as np
 def quaternion_from_K(const double[:, :] K):
     """[w, x, y, z] (w ≥ 0) of the eigenvector of the symmetric K (4, 4) with the largest eigenvalue, K's rows
     ordered (x, y, z, w) as solvers.quaternion_from_K takes them."""
-    cdef double A[16]
-    cdef double V[16]
-    cdef double w, x, y, z, norm
-    cdef int i, j, top
+    cdef double k[16]
+    cdef int i, j
     for i in range(4):
         for j in range(4):
-            A[4 * i + j] = 0.5 * (K[i, j] + K[j, i])
-    jacobi_eigen(4, A, V)
-    top = 0
-    for i in range(1, 4):
-        if A[5 * i] > A[5 * top]:
-            top = i
-    w, x, y, z = V[12 + top], V[top], V[4 + top], V[8 + top]
-    norm = sqrt(w * w + x * x + y * y + z * z)
-    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+            k[4 * i + j] = K[i, j]
     out = np.empty(4)
     cdef double[::1] o = out
-    if w < 0.0:
-        o[0], o[1], o[2], o[3] = -w, -x, -y, -z
-    else:
-        o[0], o[1], o[2], o[3] = w, x, y, z
+    _top_quaternion(k, &o[0])
     return out
 
 

@@ -19,110 +19,7 @@ from libc.math cimport ceil, cos, fabs, log2, pow, sin, sqrt
 import numpy as np
 
 
-cdef void _rotation(double x, double y, double z, double* R) noexcept nogil:
-    """exp([φ×]) row-major into R[9] for φ = (x, y, z): compass.rotation_matrix."""
-    cdef double angle = sqrt(x * x + y * y + z * z)
-    cdef double S[9]
-    cdef double SS[9]
-    cdef double a, b
-    cdef int i, j
-    S[0] = 0.0
-    S[1] = -z
-    S[2] = y
-    S[3] = z
-    S[4] = 0.0
-    S[5] = -x
-    S[6] = -y
-    S[7] = x
-    S[8] = 0.0
-    for i in range(3):
-        for j in range(3):
-            SS[3 * i + j] = S[3 * i] * S[j] + S[3 * i + 1] * S[3 + j] + S[3 * i + 2] * S[6 + j]
-    if angle < 1e-8:
-        a, b = 1.0, 0.5
-    else:
-        a, b = sin(angle) / angle, (1.0 - cos(angle)) / pow(angle, 2.0)
-    for i in range(9):
-        R[i] = (1.0 if i % 4 == 0 else 0.0) + a * S[i] + b * SS[i]
-
-
-cdef inline void _mat3_mul(const double* A, const double* B, double* out) noexcept nogil:
-    cdef int i, j
-    for i in range(3):
-        for j in range(3):
-            out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
-
-
-cdef inline void _mat8_mul(const double* A, const double* B, double* out) noexcept nogil:
-    """out = A B of 8×8 row-major matrices, each term added in index order."""
-    cdef double s
-    cdef int i, j, k
-    for i in range(8):
-        for j in range(8):
-            s = 0.0
-            for k in range(8):
-                s = s + A[8 * i + k] * B[8 * k + j]
-            out[8 * i + j] = s
-
-
-cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, const double* dalpha_b0,
-                double dt_s, double K1L, double K2L, double K3L, bint azimuth_on, double K1A, double K2A, double K3A,
-                double K4A, double earth_sign, const double* omega_ie_n, double omega_cos, double omega_sin,
-                double radius_m, const double* F, const double* Q, double* P) noexcept nogil:
-    """One control step (module docstring) on row-major C_{b0}^{p} (9), V (2), F, Q, P (64), in place."""
-    cdef double V_E = V[0], V_N = V[1], omega_E, w_up, K1N
-    cdef double H[9]
-    cdef double C[9]
-    cdef double HC[9]
-    cdef double CCt[9]
-    cdef double CCtC[9]
-    cdef double Cv[3]
-    cdef double dv[3]
-    cdef double T[64]
-    cdef double s
-    cdef int i, j, k
-    # the commanded rate from the state at the step's start, the platform rate and the half-step turn
-    if azimuth_on:
-        omega_E = -(1.0 + K2A) * V_N / radius_m
-    else:
-        omega_E = -(1.0 + K2L) * V_N / radius_m - I_N[0]
-    _rotation(-0.5 * dt_s * (earth_sign * omega_ie_n[0] + omega_E),
-              -0.5 * dt_s * (earth_sign * omega_ie_n[1] + ((1.0 + K2L) * V_E / radius_m + I_E[0])),
-              -0.5 * dt_s * (earth_sign * omega_ie_n[2] + y[0]), H)
-    for i in range(3):
-        Cv[i] = C_b0_p[3 * i] * dalpha_b0[0] + C_b0_p[3 * i + 1] * dalpha_b0[1] + C_b0_p[3 * i + 2] * dalpha_b0[2]
-    for i in range(3):
-        dv[i] = H[3 * i] * Cv[0] + H[3 * i + 1] * Cv[1] + H[3 * i + 2] * Cv[2]
-    w_up = earth_sign * omega_sin
-    K1N = K1A if azimuth_on else K1L
-    V[0] = V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s
-    V[1] = V_N + dv[1] + (-2.0 * w_up * V_E - K1N * V_N) * dt_s
-    I_E[0] += K3L * V_E * dt_s
-    if azimuth_on:
-        y[0] += (-K3A * y[0] + K4A / (earth_sign * omega_cos) * V_N) * dt_s
-    else:
-        I_N[0] += K3L * V_N * dt_s
-    # C ← H H C, then re-orthonormalised to first order: 1.5 C − 0.5 C Cᵀ C
-    _mat3_mul(H, C_b0_p, HC)
-    _mat3_mul(H, HC, C)
-    for i in range(3):
-        for j in range(3):
-            CCt[3 * i + j] = C[3 * i] * C[3 * j] + C[3 * i + 1] * C[3 * j + 1] + C[3 * i + 2] * C[3 * j + 2]
-    _mat3_mul(CCt, C, CCtC)
-    for i in range(3):
-        for j in range(3):
-            C_b0_p[3 * i + j] = 1.5 * C[3 * i + j] - 0.5 * CCtC[3 * i + j]
-    # P ← F P Fᵀ + Q, the upper triangle mirrored
-    _mat8_mul(F, P, T)
-    for i in range(8):
-        for j in range(i, 8):
-            s = 0.0
-            for k in range(8):
-                s = s + T[8 * i + k] * F[8 * j + k]
-            P[8 * i + j] = s + Q[8 * i + j]
-    for i in range(8):
-        for j in range(i):
-            P[8 * i + j] = P[8 * j + i]
+include "_compass_core.pxi"
 
 
 def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, double y,
@@ -162,65 +59,11 @@ def compass_steps(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, 
     return I_E, I_N, y
 
 
-cdef void _expm8(double* A, double* E) noexcept nogil:
-    """E = exp(A) of an 8×8 row-major A (overwritten: scaled) by scaling and squaring of a Taylor series: A scaled by
-    2^−s to a row-sum norm of at most 0.25, nine terms, s squarings; the products add their terms in index order."""
-    cdef double norm = 0.0, row, scale
-    cdef double term[64]
-    cdef double nxt[64]
-    cdef int squarings = 0, k, i, j
-    for i in range(8):
-        row = 0.0
-        for j in range(8):
-            row = row + fabs(A[8 * i + j])
-        if row > norm:
-            norm = row
-    if norm > 0.25:
-        squarings = <int>ceil(log2(norm / 0.25))
-    scale = pow(2.0, <double>squarings)
-    for i in range(64):
-        A[i] = A[i] / scale
-        E[i] = 1.0 if i % 9 == 0 else 0.0
-        term[i] = E[i]
-    for k in range(1, 10):
-        _mat8_mul(term, A, nxt)
-        for i in range(64):
-            term[i] = nxt[i] / k
-            E[i] = E[i] + term[i]
-    for k in range(squarings):
-        _mat8_mul(E, E, nxt)
-        for i in range(64):
-            E[i] = nxt[i]
-
-
 def transition(double K1L, double K2L, double K3L, bint azimuth_on, double K1A, double K2A, double K3A, double K4A,
                double earth_sign, double gravity, double radius_m, double omega_cos, double omega_sin, double dt_s):
-    """F = exp(A Δ) (8, 8) of the loops' linear error model over a step of Δ seconds (module docstring): A as
-    ``CompassLoops.error_dynamics`` builds it for these gains (the azimuth gains read only with ``azimuth_on``) and
-    Earth-rate sign, times Δ, exponentiated by :func:`_expm8`."""
-    cdef double A[64]
-    cdef double wc = earth_sign * omega_cos, ws = earth_sign * omega_sin
-    cdef double K1N = K1A if azimuth_on else K1L
-    cdef double K2N = K2A if azimuth_on else K2L
-    cdef int i
-    for i in range(64):
-        A[i] = 0.0
-    # rows and columns: δV_E, δV_N, φ_E, φ_N, φ_U, I_E, I_N, y
-    A[8 * 0 + 0], A[8 * 0 + 3] = -K1L, -gravity
-    A[8 * 1 + 1], A[8 * 1 + 2] = -K1N, gravity
-    A[8 * 2 + 1], A[8 * 2 + 3], A[8 * 2 + 4] = -(1.0 + K2N) / radius_m, ws, -wc
-    A[8 * 3 + 0], A[8 * 3 + 5], A[8 * 3 + 2] = (1.0 + K2L) / radius_m, 1.0, -ws
-    A[8 * 4 + 2] = wc
-    A[8 * 5 + 0] = K3L
-    if azimuth_on:
-        A[8 * 4 + 7] = 1.0
-        A[8 * 7 + 7], A[8 * 7 + 1] = -K3A, K4A / wc
-    else:
-        A[8 * 2 + 6] = -1.0
-        A[8 * 6 + 1] = K3L
-    for i in range(64):
-        A[i] = A[i] * dt_s
+    """F = exp(A Δ) (8, 8) of the loops' linear error model over a step of Δ seconds (:func:`_transition`)."""
     F_out = np.empty((8, 8))
     cdef double[:, ::1] F = F_out
-    _expm8(A, &F[0, 0])
+    _transition(K1L, K2L, K3L, azimuth_on, K1A, K2A, K3A, K4A, earth_sign, gravity, radius_m, omega_cos, omega_sin,
+                dt_s, &F[0, 0])
     return F_out

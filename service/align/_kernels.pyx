@@ -13,24 +13,13 @@ from libc.math cimport cos, fabs, isfinite, sin, sqrt
 
 include "_linalg.pxi"
 include "_quaternion.pxi"
+include "_fixed_site.pxi"
+include "_noise_feed.pxi"
+include "_fold.pxi"
 
 import numpy as np
 
-cdef double OMEGA_IE = 7.2921151467e-5   # service/align/earth.OMEGA_IE (rad/s)
 cdef double SWING_RIDGE = 1e-12   # service/align/swing_bias.RIDGE
-
-
-cdef inline void _beta_fixed(double lat, double gravity, double t, double* out) noexcept nogil:
-    cdef double wt = OMEGA_IE * t
-    cdef double cL = cos(lat), sL = sin(lat), t_minus_sin, s_half
-    if wt > 1e-3:
-        t_minus_sin = t - sin(wt) / OMEGA_IE
-    else:
-        t_minus_sin = t * (wt * wt) / 6.0 * (1.0 - (wt * wt) / 20.0 + (wt * wt) * (wt * wt) / 840.0)
-    s_half = sin(0.5 * wt)
-    out[0] = gravity * (cL * (2.0 * (s_half * s_half) / OMEGA_IE))
-    out[1] = gravity * (sL * cL * t_minus_sin)
-    out[2] = gravity * (t - (cL * cL) * t_minus_sin)
 
 
 def beta_fixed_at(double lat, double gravity, double t):
@@ -41,53 +30,12 @@ def beta_fixed_at(double lat, double gravity, double t):
     return out
 
 
-cdef inline void _C_n_n0_fixed(double lat, double t, double* C) noexcept nogil:
-    """C_{n(t)}^{n0} row-major into C[9]: earth.C_n_n0_fixed of a scalar, the same bits."""
-    cdef double theta = OMEGA_IE * t
-    cdef double c = cos(theta), s = sin(theta), u1 = cos(lat), u2 = sin(lat), v = 1.0 - c
-    # c I + s [u×] + (1 − c) u uᵀ with u = (0, cos L, sin L): numpy's sum of the three terms (its zeros dropped)
-    C[0] = c
-    C[1] = s * -u2
-    C[2] = s * u1
-    C[3] = s * u2
-    C[4] = c + v * (u1 * u1)
-    C[5] = v * (u1 * u2)
-    C[6] = s * -u1
-    C[7] = v * (u2 * u1)
-    C[8] = c + v * (u2 * u2)
-
-
 def C_n_n0_fixed_at(double lat, double t):
     """C_{n(t)}^{n0} (3, 3) at one time ``t`` (s since the start)."""
     out = np.empty((3, 3))
     cdef double[:, ::1] o = out
     _C_n_n0_fixed(lat, t, &o[0, 0])
     return out
-
-
-cdef void _horizontal(double lat, double elapsed_s, const double* C_b0_n0, const double* alpha, const double* beta,
-                      const double* alpha_from, const double* beta_from, double* out) noexcept nogil:
-    """out = (|horizontal velocity gained|, |horizontal turn of β|) (m/s): :func:`horizontal_gained` on row-major
-    C_b0^n0 (9) and 3-vectors."""
-    cdef double C[9]
-    cdef double dalpha[3]
-    cdef double dbeta[3]
-    cdef double moved[3]
-    cdef double gained[2]
-    cdef double turn[2]
-    cdef int i
-    _C_n_n0_fixed(lat, elapsed_s, C)
-    for i in range(3):
-        dalpha[i] = alpha[i] - alpha_from[i]
-        dbeta[i] = beta[i] - beta_from[i]
-    for i in range(3):
-        moved[i] = C_b0_n0[3 * i] * dalpha[0] + C_b0_n0[3 * i + 1] * dalpha[1] + C_b0_n0[3 * i + 2] * dalpha[2] \
-            - dbeta[i]
-    for i in range(2):   # row i of C_n0^n is column i of C_n^n0
-        gained[i] = C[i] * moved[0] + C[3 + i] * moved[1] + C[6 + i] * moved[2]
-        turn[i] = C[i] * dbeta[0] + C[3 + i] * dbeta[1] + C[6 + i] * dbeta[2]
-    out[0] = sqrt(gained[0] * gained[0] + gained[1] * gained[1])
-    out[1] = sqrt(turn[0] * turn[0] + turn[1] * turn[1])
 
 
 def horizontal_gained(double lat, double elapsed_s, const double[:, :] C_b0_n0, const double[:] alpha,
@@ -131,11 +79,6 @@ def store_and_gain(double lat, double gravity, double elapsed_s, const double[::
     return out[0]
 
 
-cdef inline long _pymod(long a, long n) noexcept nogil:
-    cdef long r = a % n
-    return r + n if r < 0 else r
-
-
 def hadamard_feed(double lat, double gravity, const double[::1] elapsed_s, const double[:, ::1] alpha_b0,
                   double[:, ::1] alpha_sum, double[:, ::1] beta_sum, double[:, ::1] last_sums,
                   const long[::1] lags, double[::1] sums, double[::1] counts, C_n0_b0, long steps, long bad_until,
@@ -143,65 +86,25 @@ def hadamard_feed(double lat, double gravity, const double[::1] elapsed_s, const
     """NoiseMeter.feed's loop over a block's observations (elapsed (M,) s, α (M, 3) m/s in b0 axes), updating the
     meter's rings and sums in place; returns (steps, bad_until, outliers found, whether a step count that is a
     multiple of ``verdict_steps`` was reached)."""
-    cdef const double[:, :] C
-    cdef bint with_C = C_n0_b0 is not None
-    if with_C:
-        C = C_n0_b0
-    cdef long capacity = alpha_sum.shape[0], n_lags = lags.shape[0], m, k, j, i, r, slot, lag
-    cdef double stencil[5]
-    stencil[:] = [1.0, -4.0, 6.0, -4.0, 1.0]
-    cdef double beta[3]
-    cdef double d[3]
-    cdef double e[3]
-    cdef double up[3]
-    cdef double norm, dd, du, square
-    cdef long outliers = 0
+    cdef double C[9]
+    cdef const double[:, :] C_view
+    cdef int i, j
     cdef bint verdict_due = False
-    for m in range(elapsed_s.shape[0]):
-        k = steps
-        _beta_fixed(lat, gravity, elapsed_s[m], beta)
-        slot = k % capacity
+    cdef long outliers, count = elapsed_s.shape[0]
+    if alpha_b0.shape[0] != count or alpha_sum.shape[0] != beta_sum.shape[0] or last_sums.shape[0] != 2 \
+            or sums.shape[0] != lags.shape[0] or counts.shape[0] != lags.shape[0]:
+        raise ValueError("hadamard_feed: one α row per time, rings of one capacity, one sum and count per lag")
+    if C_n0_b0 is not None:   # any strides in (the meter is given a transposed view): copied as they read
+        C_view = C_n0_b0
         for i in range(3):
-            last_sums[0, i] += alpha_b0[m, i]
-            last_sums[1, i] += beta[i]
-            alpha_sum[slot, i] = last_sums[0, i]
-            beta_sum[slot, i] = last_sums[1, i]
-        steps += 1
-        verdict_due = verdict_due or steps % verdict_steps == 0
-        if k < 4 * lags[0]:
-            continue
-        norm = sqrt(alpha_b0[m, 0] * alpha_b0[m, 0] + alpha_b0[m, 1] * alpha_b0[m, 1]
-                    + alpha_b0[m, 2] * alpha_b0[m, 2])
-        for i in range(3):
-            up[i] = alpha_b0[m, i] / norm
-        for j in range(n_lags):
-            lag = lags[j]
-            if k < 4 * lag:
-                break   # longer lags are not ready either
-            for i in range(3):
-                d[i] = 0.0
-                e[i] = 0.0
-            for r in range(5):
-                slot = _pymod(k - r * lag, capacity)
-                for i in range(3):
-                    d[i] += stencil[r] * alpha_sum[slot, i]
-                    e[i] += stencil[r] * beta_sum[slot, i]
-            if with_C:
-                for i in range(3):
-                    d[i] = d[i] - (e[0] * C[i, 0] + e[1] * C[i, 1] + e[2] * C[i, 2])
-            dd = 0.0
-            du = 0.0
-            for i in range(3):
-                d[i] = d[i] / lag
-                dd += d[i] * d[i]
-                du += d[i] * up[i]
-            square = 0.5 * (dd - du * du)
-            if j == 0 and counts[0] >= min_outlier_count and square > outlier_factor * sums[0] / counts[0]:
-                outliers += 1
-                bad_until = k + settle_steps
-            if k - 4 * lag > bad_until:
-                sums[j] += square
-                counts[j] += 1
+            for j in range(3):
+                C[3 * i + j] = C_view[i, j]
+    if count == 0:
+        return steps, bad_until, 0, False
+    outliers = _hadamard_feed(lat, gravity, &elapsed_s[0], &alpha_b0[0, 0], count, &alpha_sum[0, 0],
+                              &beta_sum[0, 0], alpha_sum.shape[0], &last_sums[0, 0], &lags[0], lags.shape[0],
+                              &sums[0], &counts[0], C if C_n0_b0 is not None else NULL, &steps, &bad_until,
+                              settle_steps, outlier_factor, min_outlier_count, verdict_steps, &verdict_due)
     return steps, bad_until, outliers, verdict_due
 
 
@@ -549,35 +452,11 @@ def recursive_k_fold(const double[:, ::1] K, const double[:, :, ::1] dK, const d
     """:meth:`RecursiveK.fold` of the prepared observations (δK (M, 4, 4), tr R (M,)) in order: K ← a K + c δK with
     the gain of ``policy`` (0 OPREQ's ρ*, 1 REQUEST's fixed ρ, 2 the q-method's 1/(n + 1)), the scalars in Python's
     order, K elementwise as numpy's (the same bits). Returns (K, m, tr P, n, ρ), K a new (4, 4) array."""
-    cdef Py_ssize_t j, i, count = trace_R.shape[0]
-    cdef double m_new, a, c, tr_R
+    cdef Py_ssize_t count = trace_R.shape[0]
     if dK.shape[0] != count or dK.shape[1] != 4 or dK.shape[2] != 4 or K.shape[0] != 4 or K.shape[1] != 4:
         raise ValueError("recursive_k_fold: K (4, 4), dK (M, 4, 4) and trace_R (M,)")
     K_out = np.array(K, dtype=float, copy=True)
     cdef double[:, ::1] Kn = K_out
-    cdef double* k = &Kn[0, 0]
-    cdef const double* d
-    for j in range(count):
-        tr_R = trace_R[j]
-        d = &dK[j, 0, 0]
-        if n == 0:   # K_0 = δK_0, P_0 = R_0, m_0 = 1
-            for i in range(16):
-                k[i] = d[i]
-            m, trace_P, rho = 1.0, tr_R, 1.0
-        else:
-            trace_P = trace_P + trace_Q
-            if policy == 0:
-                rho = m * m * trace_P / (m * m * trace_P + tr_R)
-            elif policy == 1:
-                rho = fixed_rho
-            else:
-                rho = 1.0 / (<double>n + 1.0)
-            m_new = (1.0 - rho) * m + rho
-            a = (1.0 - rho) * m / m_new
-            c = rho / m_new
-            trace_P = a * a * trace_P + c * c * tr_R
-            for i in range(16):
-                k[i] = a * k[i] + c * d[i]
-            m = m_new
-        n += 1
+    if count:
+        _fold(&Kn[0, 0], &dK[0, 0, 0], &trace_R[0], count, &m, &trace_P, &n, &rho, trace_Q, policy, fixed_rho)
     return K_out, m, trace_P, n, rho

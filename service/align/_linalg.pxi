@@ -60,3 +60,27 @@ cdef inline void jacobi_eigen(int n, double* A, double* V) noexcept nogil:
                     A[n * p + q] = A[n * q + p] = 0.0
                 elif apq != 0.0:
                     _jacobi_rotate(n, A, V, p, q)
+
+
+cdef void _top_quaternion(const double* K, double* q) noexcept nogil:
+    """q = [w, x, y, z] (w ≥ 0) of the eigenvector of the symmetric K (16, row-major; rows ordered (x, y, z, w) as
+    solvers.quaternion_from_K takes them) with the largest eigenvalue: cyclic Jacobi rotations of (K + Kᵀ) / 2."""
+    cdef double A[16]
+    cdef double V[16]
+    cdef double w, x, y, z, norm
+    cdef int i, j, top
+    for i in range(4):
+        for j in range(4):
+            A[4 * i + j] = 0.5 * (K[4 * i + j] + K[4 * j + i])
+    jacobi_eigen(4, A, V)
+    top = 0
+    for i in range(1, 4):
+        if A[5 * i] > A[5 * top]:
+            top = i
+    w, x, y, z = V[12 + top], V[top], V[4 + top], V[8 + top]
+    norm = sqrt(w * w + x * x + y * y + z * z)
+    w, x, y, z = w / norm, x / norm, y / norm, z / norm
+    if w < 0.0:
+        q[0], q[1], q[2], q[3] = -w, -x, -y, -z
+    else:
+        q[0], q[1], q[2], q[3] = w, x, y, z
