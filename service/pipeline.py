@@ -6,6 +6,7 @@ samples at whole multiples of the output period), the phase and the ``converged`
 """
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import replace
 from typing import Protocol
@@ -14,14 +15,15 @@ import numpy as np
 
 from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
+from .align._blocks import CONTROL, DONE, MOTION, VERDICT, FixedBaseBlocks
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment, stepped_up
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
-from .align.noise_check import NoiseMeter
+from .align.noise_check import MIN_OUTLIER_COUNT, OUTLIER_FACTOR, SETTLE_S, VERDICT_STEPS, NoiseMeter
 from .align.sensor_model import SensorGrade, auto_solver
-from .align.solvers import CentredWahba, RecursiveK
+from .align.solvers import _GAIN_POLICY, CentredWahba, RecursiveK
 from .config import Config, ConfigError
 from .modes import MODES
 from .modes.fixed_base import FixedBase
@@ -50,6 +52,25 @@ def _fold_to(solver: RecursiveK | CentredWahba, dK: np.ndarray, trace_R: np.ndar
     if upto > folded:
         solver.fold(dK[folded:upto], trace_R[folded:upto])
     return upto
+
+
+UNTOUCHED = -1
+"""A block the compiled loop has not begun (:mod:`~service.align._blocks`' stages)."""
+
+
+def fixed_base_blocks(pipeline: AlignmentPipeline) -> FixedBaseBlocks | None:
+    """The compiled loop over the control steps of a fixed-base pipeline's fresh estimators (None for any other: an
+    aided mode, another solver, a start from a given attitude)."""
+    fine = pipeline.fine
+    if (type(pipeline.mode) is not FixedBase or pipeline.aid_width or pipeline.initial_C_b_n is not None
+            or type(pipeline.coarse.solver) is not RecursiveK or not (fine is None or isinstance(fine, FineAlignment))):
+        return None
+    noise = pipeline.noise
+    settle = round(SETTLE_S / noise.step_s) if noise is not None else 0
+    solver = pipeline.coarse.solver
+    return FixedBaseBlocks(pipeline.site.lat, pipeline.site.gravity, solver, _GAIN_POLICY[solver.solver], noise,
+                           (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), pipeline.motion,
+                           pipeline.config.disturbance.check_interval_s, fine)
 
 
 class Mode(Protocol):
@@ -161,6 +182,7 @@ class AlignmentPipeline:
         # the meter's α history lives in these estimators' b0 axes (the figures found so far stay in sigma_grade)
         self.noise = (NoiseMeter(self.config.alignment.obs_interval_s, self.site.lat, self.site.gravity)
                       if self.checks_noise else None)
+        self._blocks = fixed_base_blocks(self)
 
     @property
     def aid_width(self) -> int:
@@ -327,12 +349,19 @@ class AlignmentPipeline:
         solver = self.coarse.solver
         # per block: the observations to fold by its end, and its epochs with those to fold by each (one search each
         # for the whole chunk, not per block)
-        ends = np.arange(M - 1, len(t), M)
-        fold_end = np.searchsorted(due, ends, side="right").tolist()
+        ends_array = np.arange(M - 1, len(t), M, dtype=np.intp)
+        fold_end_array = np.searchsorted(due, ends_array, side="right").astype(np.intp)
         fold_epoch = np.searchsorted(due, epochs, side="right").tolist()
-        epochs_by = [0, *np.searchsorted(epochs, ends, side="right").tolist()]   # block b: epochs_by[b] to [b + 1]
-        folded = 0
-        for b, end in enumerate(ends.tolist()):
+        # block b: its epochs epochs_by[b] to epochs_by[b + 1]
+        epochs_by = [0, *np.searchsorted(epochs, ends_array, side="right").tolist()]
+        blocks = self._blocks
+        if blocks is not None:   # the compiled loop's arrays as it reads them
+            observed_s, observed_alpha = np.ascontiguousarray(observed_s), np.ascontiguousarray(observed_alpha)
+            # each run stops at the next block with epochs (their records are Python's) or a deferred last block
+            limits = np.append(np.unique(np.searchsorted(ends_array, epochs)),
+                               len(ends_array) - 1 if self._defer_control else len(ends_array)).tolist()
+        ends, fold_end, folded, b = ends_array.tolist(), fold_end_array.tolist(), 0, 0
+        while b < len(ends):
             measured = folded   # the block's observations, whether an epoch's record folded some of them already
             for e in range(epochs_by[b], epochs_by[b + 1]):
                 j = epochs[e]
@@ -341,26 +370,58 @@ class AlignmentPipeline:
                     records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
-            folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
-            observed = observed_s[measured:folded], observed_alpha[measured:folded]
+            stage = UNTOUCHED
+            if blocks is not None:
+                limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
+                resume = False
+                while limit > b and self._blocks_ready():
+                    b, stage, folded = blocks.run(self, b, limit, folded, measured, resume, ends_array,
+                                                  fold_end_array, t, elapsed, alpha, dK, trace_R, observed_s,
+                                                  observed_alpha)
+                    if stage != VERDICT:
+                        break
+                    self._take_verdict()   # then the block's control step, compiled again
+                    stage, resume, measured = CONTROL, True, folded
+                if stage == DONE:
+                    continue
+            end = ends[b]
             step = (float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end], None if aid is None else aid[end],
                     None if aid_epoch is None else aid_epoch[end])
-            if self._defer_control and end + 1 == len(t):
-                self._deferred = observed, step   # the chunk's last block: its records leave first
-                return
-            self._finish_block(*observed, *step)
+            if stage == CONTROL:   # the compiled loop folded and measured the block
+                self._control_step(*step)
+            elif stage == MOTION:   # … and took its control step but for the motion check
+                self._check_motion(step[0], step[1], step[3])
+            else:
+                folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
+                observed = observed_s[measured:folded], observed_alpha[measured:folded]
+                if self._defer_control and end + 1 == len(t):
+                    self._deferred = observed, step   # the chunk's last block: its records leave first
+                    return
+                self._finish_block(*observed, *step)
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
                     self._process_blocks(samples[end + 1:], records)
                 return
+            b += 1
+
+    def _blocks_ready(self) -> bool:
+        """Whether the compiled loop can take the next blocks: the loops (if any) run with no stored-data passes
+        under way, and the base is not known to move."""
+        fine = self.fine
+        return ((fine is None or (fine.state is not None and fine.passes is None
+                                  and (fine.passes_done or not fine.buffer.full)))
+                and (self.motion is None or self.motion.episode is None))
 
     def _measure_noise(self, elapsed_s: np.ndarray, alpha: np.ndarray) -> None:
         """Feed one block's observations (elapsed (M,) s, α (M, 3) m/s) to the noise meter; every
         :data:`VERDICT_STEPS` observations σ takes the figures the data show (service/align/noise_check.py), and the
         operator is told once of a datasheet far too quiet."""
-        if not self.noise.feed(elapsed_s, alpha):
-            return
+        if self.noise.feed(elapsed_s, alpha):
+            self._take_verdict()
+
+    def _take_verdict(self) -> None:
+        """The noise meter's verdict, due every :data:`VERDICT_STEPS` observations."""
         if self.coarse.solver.n_obs:
             self.noise.C_n0_b0 = dcm_from_quat(self.coarse.q_b_n0).T
         verdict = self.noise.verdict(self.grade)

@@ -1,0 +1,349 @@
+# cython: language_level=3, boundscheck=False, wraparound=False, cdivision=True, initializedcheck=False
+"""The fixed-base pipeline's control steps over a chunk, compiled (built at install; docs/performance.md).
+
+Between two output epochs a fixed-base block does the same five things: fold the block's observations into K, feed
+them to the noise meter, take the compass loops' step with the gains of the schedule, check the base for motion
+under K's attitude, and move on. :class:`FixedBaseBlocks` runs that sequence for a run of blocks in one C loop, with
+the same functions the single kernels wrap (the .pxi files), in the order ``AlignmentPipeline`` calls them: the
+same bits. It hands the block back to the pipeline's Python steps wherever they decide something (:meth:`run`
+returns which): a noise verdict due, the step that fills the loops' store (the stored-data passes start), a velocity
+that calls for the estimate's σ (a quarter of the motion threshold); the pipeline calls it only while nothing else
+is pending (no epoch, the loops running and no passes under way, no motion episode: ``pipeline._blocks_ready``).
+
+Units and frames as in the modules it stands in for: time s, α and β m/s (b0, n0 axes), rates rad/s, matrices
+row-major.
+"""
+from libc.math cimport ceil, cos, fabs, log2, pow, sin, sqrt
+
+include "_linalg.pxi"
+include "_quaternion.pxi"
+include "_fixed_site.pxi"
+include "_noise_feed.pxi"
+include "_fold.pxi"
+include "_compass_core.pxi"
+
+import numpy as np
+
+DONE = 0
+"""Every block up to the limit run."""
+VERDICT = 1
+"""The block's observations folded and fed to the noise meter, whose verdict is due: the verdict and the block's
+control step are left (:meth:`FixedBaseBlocks.run` with ``resume`` takes the step)."""
+CONTROL = 2
+"""The block's observations folded and measured; its control step fills the loops' store, whose passes start then."""
+MOTION = 3
+"""The block's control step taken but for the motion check, which needs the estimate's σ."""
+
+cdef enum:
+    F_SLOTS = 8   # transition matrices kept: the steps' few lengths at the final gains
+    KEY = 10      # level K1..K3, azimuth on, azimuth K1..K4, Earth-rate sign, step length
+    MAX_KNOTS = 32
+
+cdef double SUSPECT_FRACTION = 0.25   # service/align/disturbance.SUSPECT_FRACTION
+
+
+cdef double _geometric(const double* knots, const double* values, int n, double t) noexcept nogil:
+    """compass._geometric: σ between knots interpolated geometrically."""
+    cdef int j = 0
+    cdef double a, b, f
+    if t >= knots[n - 1]:
+        return values[n - 1]
+    while j + 1 < n and knots[j + 1] <= t:   # bisect_right − 1
+        j += 1
+    a, b = values[j], values[j + 1]
+    if a <= 0.0:
+        return 0.0 if b <= 0.0 or t < knots[j + 1] else b
+    f = (t - knots[j]) / (knots[j + 1] - knots[j])
+    return a * pow(b / a, f)
+
+
+cdef class FixedBaseBlocks:
+    """The constants of one pipeline's estimators and the loops' recent transition matrices; :meth:`run` takes the
+    estimators' state from their objects and writes it back."""
+
+    cdef double lat, gravity
+    # the solver's gain policy
+    cdef double trace_Q, fixed_rho
+    cdef int policy
+    # the noise meter
+    cdef bint with_noise
+    cdef long settle_steps, min_outlier_count, verdict_steps
+    cdef double outlier_factor
+    # the motion monitor
+    cdef bint with_motion
+    cdef long ring_n
+    cdef double threshold, check_interval_s
+    # the compass loops
+    cdef bint with_fine
+    cdef int n_knots
+    cdef double knots[MAX_KNOTS]
+    cdef double level_sigma[MAX_KNOTS]
+    cdef double azimuth_sigma[MAX_KNOTS]
+    cdef double radius_m, omega_cos, omega_sin, loops_gravity
+    cdef double omega_ie_n[3]
+    cdef double keys[F_SLOTS][KEY]
+    cdef double F[F_SLOTS][64]
+    cdef int n_F, next_F
+
+    def __init__(self, double lat, double gravity, solver, int policy, noise, noise_constants, motion,
+                 check_interval_s, fine):
+        """``solver``: the RecursiveK and its gain ``policy`` (solvers._GAIN_POLICY); ``noise``: the NoiseMeter or
+        None, with ``noise_constants`` (settle steps, outlier factor, least outlier count, verdict steps);
+        ``motion``: the MotionMonitor or None, checked every ``check_interval_s``; ``fine``: the FineAlignment or None
+        (its loops' schedule and site constants)."""
+        cdef int i
+        self.lat, self.gravity = lat, gravity
+        self.trace_Q, self.fixed_rho, self.policy = solver.trace_Q, solver.fixed_rho, policy
+        self.with_noise = noise is not None
+        if self.with_noise:
+            self.settle_steps, self.outlier_factor, self.min_outlier_count, self.verdict_steps = noise_constants
+        self.with_motion = motion is not None
+        if self.with_motion:
+            self.ring_n, self.threshold = motion._n, motion.threshold_mps
+            self.check_interval_s = check_interval_s
+        self.with_fine = fine is not None
+        self.n_F = self.next_F = 0
+        if self.with_fine:
+            loops = fine.loops
+            schedule = loops.schedule
+            self.n_knots = len(schedule.time_s)
+            if self.n_knots > MAX_KNOTS:
+                raise ValueError(f"FixedBaseBlocks: at most {MAX_KNOTS} schedule knots")
+            for i in range(self.n_knots):
+                self.knots[i] = schedule.time_s[i]
+                self.level_sigma[i] = schedule.level_sigma[i]
+                self.azimuth_sigma[i] = schedule.azimuth_sigma[i]
+            self.radius_m, self.loops_gravity = loops.radius_m, loops.gravity
+            self.omega_cos, self.omega_sin = loops.omega_cos, loops.omega_sin
+            for i in range(3):
+                self.omega_ie_n[i] = loops.omega_ie_n[i]
+
+    cdef const double* _transition_of(self, const double* key) noexcept nogil:
+        """F of ``key`` (:data:`KEY` values), from the kept ones or computed (the oldest kept one replaced)."""
+        cdef int s, i
+        cdef bint same
+        for s in range(self.n_F):
+            same = True
+            for i in range(KEY):
+                if self.keys[s][i] != key[i]:
+                    same = False
+                    break
+            if same:
+                return self.F[s]
+        s = self.next_F
+        self.next_F = (self.next_F + 1) % F_SLOTS
+        if self.n_F < F_SLOTS:
+            self.n_F += 1
+        for i in range(KEY):
+            self.keys[s][i] = key[i]
+        _transition(key[0], key[1], key[2], key[3] != 0.0, key[4], key[5], key[6], key[7], key[8],
+                    self.loops_gravity, self.radius_m, self.omega_cos, self.omega_sin, key[9], self.F[s])
+        return self.F[s]
+
+    def run(self, pipeline, Py_ssize_t b, Py_ssize_t limit, Py_ssize_t folded, Py_ssize_t measured, bint resume,
+            const Py_ssize_t[::1] ends, const Py_ssize_t[::1] fold_end, const double[:] t, const double[:] elapsed,
+            alpha_array, const double[:, :, ::1] dK, const double[::1] trace_R,
+            const double[::1] observed_s, const double[:, ::1] observed_alpha):
+        """Blocks ``b`` to ``limit`` − 1 of a chunk (block c: its samples end at ``ends[c]``; its observations are
+        folded up to ``fold_end[c]``), the first with its observations folded up to ``folded`` already and measured
+        from ``measured`` on (``resume``: all of them folded and measured, its control step left). Returns (the
+        block it stopped at, :data:`DONE`, :data:`VERDICT`, :data:`CONTROL` or :data:`MOTION`, the observations
+        folded)."""
+        cdef const double[:, :] alpha = alpha_array
+        cdef Py_ssize_t c = b, e, upto, i, j
+        solver, noise, motion, fine = pipeline.coarse.solver, pipeline.noise, pipeline.motion, pipeline.fine
+        # the solver
+        K_out = np.array(solver.K, dtype=float, copy=True)
+        cdef double[:, ::1] K_view = K_out
+        cdef double* K = &K_view[0, 0]
+        cdef double m = solver.m, trace_P = solver.trace_P, rho = solver.rho
+        cdef long n_obs = solver.n_obs
+        cdef double q[4]
+        cdef bint q_known = solver._q is not None, q_new = False
+        cdef const double[::1] q_view
+        if q_known:
+            q_view = solver._q
+            q[0], q[1], q[2], q[3] = q_view[0], q_view[1], q_view[2], q_view[3]
+        # the pipeline's step
+        cdef double alpha_step[3]
+        cdef const double[:] alpha_step_view = pipeline._alpha_step
+        alpha_step[0], alpha_step[1], alpha_step[2] = alpha_step_view[0], alpha_step_view[1], alpha_step_view[2]
+        cdef double t_step = pipeline._t_step, next_check_s = pipeline._next_check_s
+        # the noise meter
+        cdef double[:, ::1] alpha_sum, beta_sum, last_sums
+        cdef const long[::1] lags
+        cdef double[::1] sums, counts
+        cdef const double[:, :] C_rough_view
+        cdef double C_rough[9]
+        cdef bint with_rough = False
+        cdef long steps = 0, bad_until = 0, outliers = 0
+        cdef bint verdict_due = False
+        if self.with_noise:
+            alpha_sum, beta_sum, last_sums = noise._alpha_sum, noise._beta_sum, noise._last_sums
+            lags, sums, counts = noise._lags, noise._sums, noise._counts
+            steps, bad_until = noise.steps, noise._bad_until
+            if noise.C_n0_b0 is not None:
+                with_rough = True
+                C_rough_view = noise.C_n0_b0
+                for i in range(3):
+                    for j in range(3):
+                        C_rough[3 * i + j] = C_rough_view[i, j]
+        # the motion monitor
+        cdef double[::1] ring_elapsed
+        cdef double[:, ::1] ring_alpha, ring_beta
+        cdef double[:, :, ::1] ring_C
+        cdef long ring_count = 0, slot, oldest
+        cdef double window_speed = 0.0, speed = 0.0
+        cdef bint checked = False
+        if self.with_motion:
+            ring_elapsed, ring_alpha, ring_beta, ring_C = motion._elapsed, motion._alpha, motion._beta, motion._C
+            ring_count = motion._count
+        # the compass loops
+        cdef double[:, ::1] C_b0_p, P, stored_dalpha
+        cdef double[::1] V, stored_dt
+        cdef Py_ssize_t stored = 0, capacity = 0
+        cdef bint passes_done = True
+        cdef double I_E = 0.0, I_N = 0.0, y = 0.0, t_loop_s = 0.0, earth_sign = 1.0, vrw2 = 0.0, arw2 = 0.0
+        cdef bint azimuth_on = False
+        if self.with_fine:
+            state = fine.state
+            C_b0_p, V, P = state.C_b0_p, state.V, state.P
+            I_E, I_N, y, t_loop_s = state.I_E, state.I_N, state.y, state.t_loop_s
+            azimuth_on, earth_sign = state.azimuth_on, state.earth_sign
+            grade = fine.loops.grade
+            buffer = fine.buffer
+            stored_dalpha, stored_dt, stored, capacity = buffer.dalpha, buffer.dt_s, buffer.count, buffer.capacity
+            passes_done = fine.passes_done
+            vrw2, arw2 = pow(grade.acc_vrw_ms_rts, 2.0), pow(grade.gyro_arw_rad_rts, 2.0)
+        cdef double key[KEY]
+        cdef double Q[64]
+        cdef double dalpha[3]
+        cdef double beta[3]
+        cdef double C[9]
+        cdef double gained[2]
+        cdef double ws2 = self.loops_gravity / self.radius_m if self.with_fine else 1.0
+        cdef double level_s, azimuth_s, t_end, elapsed_s, dt_s
+        cdef const double* F
+        cdef const double* a
+        cdef int stage = DONE
+        cdef Py_ssize_t stepped = -1   # the last sample whose control step was taken
+        for i in range(64):
+            Q[i] = 0.0
+        while c < limit:
+            # the block's observations: folded, then measured
+            upto = fold_end[c]
+            if resume and c == b:
+                pass
+            elif upto > folded:
+                _fold(K, &dK[folded, 0, 0], &trace_R[folded], upto - folded, &m, &trace_P, &n_obs, &rho,
+                      self.trace_Q, self.policy, self.fixed_rho)
+                folded = upto
+                q_known = False
+            if self.with_noise and folded > measured:
+                outliers += _hadamard_feed(self.lat, self.gravity, &observed_s[measured], &observed_alpha[measured, 0],
+                                           folded - measured, &alpha_sum[0, 0], &beta_sum[0, 0], alpha_sum.shape[0],
+                                           &last_sums[0, 0], &lags[0], lags.shape[0], &sums[0], &counts[0],
+                                           C_rough if with_rough else NULL, &steps, &bad_until, self.settle_steps,
+                                           self.outlier_factor, self.min_outlier_count, self.verdict_steps,
+                                           &verdict_due)
+            measured = folded
+            if verdict_due:
+                stage = VERDICT
+                break
+            if self.with_fine and stored == capacity - 1 and not passes_done:
+                stage = CONTROL   # this step fills the store: FineAlignment.feed starts the passes
+                break
+            # the control step: Δα and Δ since the last one
+            e = ends[c]
+            t_end, elapsed_s = t[e], elapsed[e]
+            for i in range(3):
+                dalpha[i] = alpha[e, i] - alpha_step[i]
+                alpha_step[i] = alpha[e, i]
+            dt_s = t_end - t_step
+            t_step = t_end
+            stepped = e
+            if self.with_fine:   # FineAlignment.feed: the store, then CompassLoops.step: the schedule's gains, the
+                # azimuth switch, F, Q, the step
+                if stored < capacity:
+                    for i in range(3):
+                        stored_dalpha[stored, i] = dalpha[i]
+                    stored_dt[stored] = dt_s
+                    stored += 1
+                level_s = _geometric(self.knots, self.level_sigma, self.n_knots, t_loop_s)
+                azimuth_s = _geometric(self.knots, self.azimuth_sigma, self.n_knots, t_loop_s)
+                key[0] = 3.0 * level_s
+                key[1] = 4.0 * pow(level_s, 2.0) / ws2 - 1.0
+                key[2] = 2.0 * pow(level_s, 3.0) / self.loops_gravity
+                if azimuth_s > 0.0 and not azimuth_on:
+                    azimuth_on, I_N, y = True, 0.0, 0.0
+                if azimuth_on:
+                    key[3] = 1.0
+                    key[4] = 2.0 * azimuth_s
+                    key[5] = 4.0 * pow(azimuth_s, 2.0) / ws2 - 1.0
+                    key[6] = 2.0 * azimuth_s
+                    key[7] = 4.0 * pow(azimuth_s, 4.0) / self.loops_gravity
+                else:
+                    key[3] = key[4] = key[5] = key[6] = key[7] = 0.0
+                key[8], key[9] = earth_sign, dt_s
+                F = self._transition_of(key)
+                Q[0] = Q[9] = vrw2 * dt_s
+                Q[18] = Q[27] = Q[36] = arw2 * dt_s
+                _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, dalpha, dt_s, key[0], key[1], key[2], azimuth_on,
+                      key[4], key[5], key[6], key[7], earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin,
+                      self.radius_m, F, Q, &P[0, 0])
+                t_loop_s += dt_s
+            if self.with_motion and elapsed_s >= next_check_s:
+                next_check_s = elapsed_s + self.check_interval_s
+                if n_obs != 0:   # MotionMonitor.check, the base still: the entry stored, the window's velocity
+                    if not q_known:
+                        _top_quaternion(K, q)
+                        q_known = q_new = True
+                    _dcm(q[0], q[1], q[2], q[3], C)
+                    slot = ring_count % (self.ring_n + 1)
+                    oldest = (ring_count + 1) % (self.ring_n + 1)
+                    _beta_fixed(self.lat, self.gravity, elapsed_s, beta)
+                    a = &alpha_step[0]
+                    if ring_count + 1 > self.ring_n:
+                        _horizontal(self.lat, elapsed_s, &ring_C[oldest, 0, 0], a, beta, &ring_alpha[oldest, 0],
+                                    &ring_beta[oldest, 0], gained)
+                        speed = gained[0]
+                        if speed > SUSPECT_FRACTION * self.threshold:
+                            stage = MOTION   # the monitor's Python steps take the check from here
+                            break
+                    ring_elapsed[slot] = elapsed_s
+                    for i in range(3):
+                        ring_beta[slot, i] = beta[i]
+                        ring_alpha[slot, i] = a[i]
+                        for j in range(3):
+                            ring_C[slot, i, j] = C[3 * i + j]
+                    ring_count += 1
+                    if ring_count > self.ring_n:
+                        window_speed = speed
+                        checked = True
+            c += 1
+        # the state back into its objects
+        solver.K, solver.m, solver.trace_P, solver.n_obs, solver.rho = K_out, m, trace_P, n_obs, rho
+        if not q_known:
+            solver._q = None
+        elif q_new:
+            q_out = np.array([q[0], q[1], q[2], q[3]])
+            q_out.flags.writeable = False
+            solver._q = q_out
+        if stepped >= 0:
+            pipeline._alpha_step = alpha_array[stepped]
+            pipeline._t_step = t_step
+        pipeline._next_check_s = next_check_s
+        if self.with_noise:
+            noise.steps, noise._bad_until = steps, bad_until
+            noise.outliers += outliers
+        if self.with_motion:
+            motion._count = ring_count
+            if checked:
+                motion.window_speed_mps, motion.suspect = window_speed, False
+        if self.with_fine:
+            state.I_E, state.I_N, state.y, state.t_loop_s = I_E, I_N, y, t_loop_s
+            state.azimuth_on = azimuth_on
+            buffer.count = stored
+            fine._omega_p = None
+        return c, stage, folded
+

@@ -1,0 +1,72 @@
+"""The compiled loop over a fixed-base chunk's control steps (service/align/_blocks.pyx) against the pipeline's Python
+steps, block by block: the same records, bit for bit, in every configuration it takes part in (offline and live,
+chunks of any size, with the loops or without, motion episodes and restarts, noise verdicts that change σ's grade,
+another solver, no stored-data passes), and it takes most blocks (else the comparison would prove nothing)."""
+from __future__ import annotations
+
+import pytest
+import sinsalign.service.pipeline as pipeline_module
+from sinsalign.service.config import config_from_mapping
+from sinsalign.service.pipeline import AlignmentPipeline
+from sinsalign.tools.sim.imu import simulate
+from sinsalign.tools.sim.scenarios import get_scenario
+
+
+class _Counting:
+    """The compiled loop, counting the blocks it completes."""
+
+    def __init__(self, blocks: object) -> None:
+        self.blocks, self.completed = blocks, 0
+
+    def run(self, pipeline: AlignmentPipeline, b: int, limit: int, *arrays: object) -> tuple:
+        stopped = self.blocks.run(pipeline, b, limit, *arrays)
+        self.completed += stopped[0] - b
+        return stopped
+
+
+def _records(monkeypatch: pytest.MonkeyPatch, name: str, seconds: float, overrides: dict, live: bool,
+             call_samples: int | None, compiled: bool) -> tuple[list, int]:
+    loops: list[_Counting] = []
+    make = pipeline_module.fixed_base_blocks
+
+    def counted(pipeline: AlignmentPipeline) -> _Counting | None:
+        blocks = make(pipeline) if compiled else None
+        if blocks is not None:
+            loops.append(_Counting(blocks))
+            return loops[-1]
+        return None
+
+    monkeypatch.setattr(pipeline_module, "fixed_base_blocks", counted)
+    scenario = get_scenario(name)
+    p = AlignmentPipeline(config_from_mapping(overrides), scenario.site, scenario.rate_hz,
+                          scenario.grade.datasheet(), live=live)
+    records = []
+    for chunk in simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1):
+        step = call_samples or len(chunk.t)
+        for k in range(0, len(chunk.t), step):
+            records += p.process(chunk.t[k:k + step], chunk.dtheta[k:k + step], chunk.dv[k:k + step],
+                                 defer_control=live)
+    p.settle()
+    return records, sum(loop.completed for loop in loops)
+
+
+@pytest.mark.parametrize(("name", "seconds", "overrides", "live", "call_samples", "share"), [
+    ("seed001-swing", 300.0, {}, False, None, 0.8),
+    ("seed001-swing", 200.0, {}, True, 7, 0.3),                 # live passes: Python's steps until they end
+    ("swing-drive-stop", 300.0, {}, False, None, 0.3),          # a motion episode, a restart
+    ("parked-nodatasheet", 400.0, {}, False, 1000, 0.7),        # the data's noise replaces the datasheet's
+    ("seed000-swing", 200.0, {"fine": {"enabled": False}}, False, 333, 0.8),
+    ("seed001-swing", 200.0, {"alignment": {"solver": "request"}, "fine": {"compass": {"stored_pairs": 0}}},
+     True, 70, 0.4),
+])
+def test_the_compiled_loop_gives_the_python_steps_records(monkeypatch: pytest.MonkeyPatch, name: str, seconds: float,
+                                                          overrides: dict, live: bool, call_samples: int | None,
+                                                          share: float) -> None:
+    compiled, completed = _records(monkeypatch, name, seconds, overrides, live, call_samples, True)
+    python, none = _records(monkeypatch, name, seconds, overrides, live, call_samples, False)
+    assert none == 0
+    assert len(compiled) == len(python) > 0
+    for a, b in zip(compiled, python, strict=True):
+        assert a == b
+    blocks = seconds / 0.1
+    assert completed >= share * blocks, f"the compiled loop took {completed} of {blocks:g} blocks"
