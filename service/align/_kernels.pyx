@@ -9,7 +9,7 @@ order, where numpy's BLAS may add them in another: those agree to the last few b
 
 Units are SI: time s, angles rad, α and β m/s; frames as in service/align/earth.py and noise_check.py.
 """
-from libc.math cimport cos, fabs, isfinite, sin, sqrt
+from libc.math cimport cos, fabs, isfinite, pow, sin, sqrt
 
 include "_linalg.pxi"
 include "_quaternion.pxi"
@@ -163,12 +163,11 @@ cdef inline bint _any_negative(const double* x, int k) noexcept nogil:
     return False
 
 
-def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const double[::1] weights):
-    """noise_check._weighted_nonnegative_fit compiled, for 3 unknowns and at most 8 rows: x ≥ 0 minimising
-    Σ w (A x − m)² over the 7 active sets (sizes 1 to 3, each solved by Householder QR), and the standard errors of the
-    unconstrained fit, the diagonal of the pseudo-inverse of the column-scaled normal matrix (eigenvalues below 1e-15
-    of the largest left out, as numpy.linalg.pinv does)."""
-    cdef int rows = A.shape[0], i, j, c, k
+cdef void _nonnegative_fit(int rows, const double* A, const double* m, const double* weights, double* best,
+                           double* se) noexcept nogil:
+    """:func:`weighted_nonnegative_fit` on a row-major A (rows ≤ 8, 3): x ≥ 0 into ``best``, the standard errors
+    into ``se``."""
+    cdef int i, j, c, k
     cdef double Aw[8 * 3]
     cdef double mw[8]
     cdef double N[9]
@@ -176,7 +175,6 @@ def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const 
     cdef double scale[3]
     cdef double x_sub[3]
     cdef double x[3]
-    cdef double best[3]
     cdef double best_cost = 0.0, cost, r, root, largest = 0.0, diagonal
     cdef int subsets[7][3]
     cdef int sizes[7]
@@ -188,14 +186,12 @@ def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const 
     subsets[4][:] = [0, 2, 0]
     subsets[5][:] = [1, 2, 0]
     subsets[6][:] = [0, 1, 2]
-    if rows > 8 or A.shape[1] != 3:
-        raise ValueError("weighted_nonnegative_fit takes (rows ≤ 8, 3)")
     for i in range(rows):
         root = sqrt(weights[i])
         mw[i] = m[i] * root
         best_cost += mw[i] * mw[i]
         for j in range(3):
-            Aw[3 * i + j] = A[i, j] * root
+            Aw[3 * i + j] = A[3 * i + j] * root
     for j in range(3):
         best[j] = 0.0
         for c in range(3):
@@ -224,16 +220,57 @@ def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const 
     jacobi_eigen(3, N, V)
     for j in range(3):
         largest = max(largest, fabs(N[4 * j]))
-    se = np.empty(3)
-    cdef double[::1] s = se
     for j in range(3):
         diagonal = 0.0
         for c in range(3):
             if fabs(N[4 * c]) > 1e-15 * largest:
                 diagonal += V[3 * j + c] * V[3 * j + c] / N[4 * c]
-        s[j] = sqrt(max(diagonal / (scale[j] * scale[j]), 0.0))
-    return np.array([best[0], best[1], best[2]]), se
+        se[j] = sqrt(max(diagonal / (scale[j] * scale[j]), 0.0))
 
+
+def weighted_nonnegative_fit(const double[:, ::1] A, const double[::1] m, const double[::1] weights):
+    """noise_check's fit, for 3 unknowns and at most 8 rows: x ≥ 0 minimising Σ w (A x − m)² over the 7 active sets
+    (sizes 1 to 3, each solved by Householder QR), and the standard errors of the unconstrained fit, the diagonal of
+    the pseudo-inverse of the column-scaled normal matrix (eigenvalues below 1e-15 of the largest left out, as
+    numpy.linalg.pinv does). Returns (x (3,), standard errors (3,))."""
+    if A.shape[0] > 8 or A.shape[1] != 3 or m.shape[0] != A.shape[0] or weights.shape[0] != A.shape[0]:
+        raise ValueError("weighted_nonnegative_fit takes A (rows ≤ 8, 3), m and weights (rows,)")
+    x, se = np.empty(3), np.empty(3)
+    cdef double[::1] x_view = x, se_view = se
+    _nonnegative_fit(A.shape[0], &A[0, 0], &m[0], &weights[0], &x_view[0], &se_view[0])
+    return x, se
+
+
+def noise_figures(const double[::1] sums, const double[::1] counts, const double[::1] lag_s,
+                  const double[::1] lag_cubed, double step_s, double gravity, double min_span_s,
+                  double min_mean_square):
+    """NoiseMeter.figures: each lag τ (``lag_s``, with τ³ as the meter computed it once) with ``min_span_s`` of
+    stencils (counts × step ≥ it) gives its mean square m = sum / count, its row (8/3 τ, 2/3 g² τ³, 20 / τ) and its weight n_eff / (2 max(m, ``min_mean_square``)²),
+    n_eff = max(count × step / (2 τ), 1); the fit of :func:`weighted_nonnegative_fit`. Returns (q, N², S, their
+    standard errors), or None before three lags have their span."""
+    cdef int n = sums.shape[0], rows = 0, j
+    cdef double A[8 * 3]
+    cdef double m[8]
+    cdef double w[8]
+    cdef double x[3]
+    cdef double se[3]
+    cdef double lag, mean, n_eff, floor_m
+    cdef double cubic = 2.0 / 3.0 * pow(gravity, 2.0)
+    if n > 8 or counts.shape[0] != n or lag_s.shape[0] != n or lag_cubed.shape[0] != n:
+        raise ValueError("noise_figures: at most 8 lags, one sum, count and lag each")
+    for j in range(n):
+        if counts[j] * step_s >= min_span_s:
+            lag = lag_s[j]
+            mean = sums[j] / counts[j]
+            A[3 * rows], A[3 * rows + 1], A[3 * rows + 2] = 8.0 / 3.0 * lag, cubic * lag_cubed[j], 20.0 / lag
+            n_eff = max(counts[j] * step_s / (2.0 * lag), 1.0)
+            floor_m = max(mean, min_mean_square)
+            m[rows], w[rows] = mean, n_eff / (2.0 * (floor_m * floor_m))
+            rows += 1
+    if rows < 3:
+        return None
+    _nonnegative_fit(rows, A, m, w, x, se)
+    return x[0], x[1], x[2], se[0], se[1], se[2]
 
 
 cdef inline void _earth_turn_integrals(double t, double* out) noexcept nogil:

@@ -31,7 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ._kernels import hadamard_feed, weighted_nonnegative_fit
+from ._kernels import hadamard_feed, noise_figures
 from .conventions import DRH_TO_RRS, UG_TO_MS2
 from .sensor_model import SMALLEST_FIGURE, SensorGrade
 
@@ -88,6 +88,7 @@ class NoiseMeter:
         self._lat, self._gravity = lat, gravity
         self._lags = np.array([max(1, round(lag / step_s)) for lag in LAGS_S], dtype=np.int64)
         self._lag_s = self._lags * step_s
+        self._lag_cubed = self._lag_s**3   # once, by numpy's power: the fit's rows keep its bits
         self._capacity = 4 * int(self._lags.max()) + 1
         self._alpha_sum = np.zeros((self._capacity, 3))   # running sums of α and β, m/s (one term per step)
         self._beta_sum = np.zeros((self._capacity, 3))
@@ -116,19 +117,14 @@ class NoiseMeter:
         return verdict_due
 
     def figures(self) -> NoiseFigures | None:
-        """The fit of the lags with :data:`MIN_SPAN_S` of stencils; None before three lags have them."""
-        have = self._counts * self.step_s >= MIN_SPAN_S
-        if have.sum() < 3:
-            return None
-        lag_s, counts = self._lag_s[have], self._counts[have]
-        m = self._sums[have] / counts
-        A = np.column_stack((8.0 / 3.0 * lag_s, 2.0 / 3.0 * self._gravity**2 * lag_s**3, 20.0 / lag_s))
-        # a mean square of n_eff independent χ² terms has variance 2 m² / n_eff; overlapping stencils of one lag are
-        # independent about every other stencil length
-        n_eff = np.maximum(counts * self.step_s / (2.0 * lag_s), 1.0)
-        # x ≥ 0 of the weighted fit over its active sets, compiled (_kernels.weighted_nonnegative_fit)
-        x, se = weighted_nonnegative_fit(A, m, n_eff / (2.0 * np.maximum(m, MIN_MEAN_SQUARE) ** 2))
-        return NoiseFigures(*x, *se)
+        """The fit of the lags with :data:`MIN_SPAN_S` of stencils; None before three lags have them. Each lag's
+        mean square m is fitted by the model's row (8/3 τ, 2/3 g² τ³, 20 / τ) with its statistical weight: a mean
+        square of n_eff independent χ² terms has variance 2 m² / n_eff, and overlapping stencils of one lag are
+        independent about every other stencil length (n_eff = count × step / 2τ); x ≥ 0 of the weighted fit over its
+        active sets. Compiled in one call (``_kernels.noise_figures``)."""
+        fit = noise_figures(self._sums, self._counts, self._lag_s, self._lag_cubed, self.step_s, self._gravity,
+                            MIN_SPAN_S, MIN_MEAN_SQUARE)
+        return None if fit is None else NoiseFigures(*fit)
 
     def verdict(self, stated: SensorGrade) -> NoiseVerdict | None:
         """The grade σ should use: the datasheet's, with each density the data tell apart from it replaced by the

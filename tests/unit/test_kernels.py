@@ -18,6 +18,7 @@ from sinsalign.service.align._kernels import (
     beta_fixed_at,
     beta_fixed_many,
     horizontal_gained,
+    noise_figures,
     recursive_k_prepare,
     store_and_gain,
     weighted_nonnegative_fit,
@@ -25,8 +26,10 @@ from sinsalign.service.align._kernels import (
 from sinsalign.service.align.conventions import dcm_from_euler
 from sinsalign.service.align.earth import C_n_n0_fixed, Site, beta_fixed
 from sinsalign.service.align.noise_check import (
+    LAGS_S,
     MIN_MEAN_SQUARE,
     MIN_OUTLIER_COUNT,
+    MIN_SPAN_S,
     OUTLIER_FACTOR,
     SETTLE_S,
     STENCIL,
@@ -254,3 +257,29 @@ def test_a_signal_without_noise_gives_zero_figures():
     m = np.zeros(5)
     x, se = weighted_nonnegative_fit(A, m, 1.0 / (2.0 * np.maximum(m, MIN_MEAN_SQUARE) ** 2))
     assert np.all(x == 0.0) and np.all(np.isfinite(se))
+
+
+def numpy_noise_rows(sums, counts, lag_s, step_s, gravity):
+    """NoiseMeter.figures' rows in numpy: the lags with their span, their design, mean squares and weights."""
+    have = counts * step_s >= MIN_SPAN_S
+    lag_s, counts = lag_s[have], counts[have]
+    m = sums[have] / counts
+    A = np.column_stack((8.0 / 3.0 * lag_s, 2.0 / 3.0 * gravity**2 * lag_s**3, 20.0 / lag_s))
+    n_eff = np.maximum(counts * step_s / (2.0 * lag_s), 1.0)
+    return have.sum(), A, m, n_eff / (2.0 * np.maximum(m, MIN_MEAN_SQUARE) ** 2)
+
+
+@pytest.mark.parametrize("step_s", [0.1, 0.05, 0.03])
+def test_the_noise_figures_are_the_fit_of_the_numpy_rows(step_s):
+    rng = np.random.default_rng(round(step_s * 100))
+    lag_s = np.array([max(1, round(lag / step_s)) for lag in LAGS_S]) * step_s
+    for _ in range(300):
+        counts = np.floor(rng.uniform(0, 2.0 * MIN_SPAN_S / step_s, len(lag_s)))
+        sums = counts * 10.0 ** rng.uniform(-16, -8, len(lag_s)) * (rng.uniform(size=len(lag_s)) > 0.1)
+        rows, A, m, w = numpy_noise_rows(sums, counts, lag_s, step_s, 9.8)
+        figures = noise_figures(sums, counts, lag_s, lag_s**3, step_s, 9.8, MIN_SPAN_S, MIN_MEAN_SQUARE)
+        if rows < 3:
+            assert figures is None
+            continue
+        x, se = weighted_nonnegative_fit(A, m, w)
+        assert figures == (*x, *se)
