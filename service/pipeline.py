@@ -22,7 +22,7 @@ from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.noise_check import MIN_OUTLIER_COUNT, OUTLIER_FACTOR, SETTLE_S, VERDICT_STEPS, NoiseMeter
-from .align.sensor_model import SensorGrade, auto_solver
+from .align.sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, auto_solver
 from .align.solvers import _GAIN_POLICY, CentredWahba, RecursiveK
 from .config import Config, ConfigError
 from .modes import MODES
@@ -70,7 +70,8 @@ def fixed_base_blocks(pipeline: AlignmentPipeline) -> FixedBaseBlocks | None:
     solver = pipeline.coarse.solver
     return FixedBaseBlocks(pipeline.site.lat, pipeline.site.gravity, solver, _GAIN_POLICY[solver.solver], noise,
                            (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), pipeline.motion,
-                           pipeline.config.disturbance.check_interval_s, fine)
+                           pipeline.config.disturbance.check_interval_s, fine, pipeline.config.fine.compass,
+                           SIGMA_UNKNOWN_DEG)
 
 
 class Mode(Protocol):
@@ -406,11 +407,10 @@ class AlignmentPipeline:
             b += 1
 
     def _blocks_ready(self) -> bool:
-        """Whether the compiled loop can take the next blocks: the loops (if any) run with no stored-data passes
-        under way, and the base is not known to move."""
+        """Whether the compiled loop can take the next blocks: no stored-data passes under way, and the base not
+        known to move."""
         fine = self.fine
-        return ((fine is None or (fine.state is not None and fine.passes is None
-                                  and (fine.passes_done or not fine.buffer.full)))
+        return ((fine is None or (fine.passes is None and (fine.passes_done or not fine.buffer.full)))
                 and (self.motion is None or self.motion.episode is None))
 
     def _measure_noise(self, elapsed_s: np.ndarray, alpha: np.ndarray) -> None:

@@ -7,9 +7,8 @@ from dataclasses import replace
 import numpy as np
 
 from ..protocol.results import ResultRecord
-from .align._attitude import record_angles
+from .align._attitude import output_quaternion, record_angles
 from .align.coarse import AttitudeSolution
-from .align.conventions import dcm_from_quat, quat_from_dcm, with_heading_of
 
 
 def result_record(solution: AttitudeSolution, t_epoch: float, phase: str, threshold_deg: float) -> ResultRecord:
@@ -26,15 +25,13 @@ def smaller_sigma_solution(coarse: AttitudeSolution, C_fine: np.ndarray, fine_he
     """The output once the loops run beside the coarse stage (which runs on): the level of whichever of the two
     claims the smaller level σ, the heading of whichever claims the smaller heading σ, each with its σ. So the fine
     stage never makes either worse than the coarse stage alone would give (a 600-s least-squares heading can beat a
-    narrow loop, while the loops hold the level that the inertial-frame fit lets drift by ε·T)."""
-    C_coarse = dcm_from_quat(coarse.q_b_n)
-    level_fine = fine_level_sigma_deg < coarse.level_sigma_deg
-    heading_fine = fine_heading_sigma_deg < coarse.heading_sigma_deg
-    if not level_fine and not heading_fine:
+    narrow loop, while the loops hold the level that the inertial-frame fit lets drift by ε·T). The attitude is
+    compiled (``_attitude.output_quaternion``: quat_from_dcm of the one, or of conventions.with_heading_of)."""
+    q_b_n = output_quaternion(np.ascontiguousarray(coarse.q_b_n, dtype=float), coarse.heading_sigma_deg,
+                              coarse.level_sigma_deg, C_fine, fine_heading_sigma_deg, fine_level_sigma_deg)
+    if q_b_n is None:
         return coarse
-    C_level = C_fine if level_fine else C_coarse
-    C_b_n = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
-    return AttitudeSolution(coarse.t, quat_from_dcm(C_b_n), min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
+    return AttitudeSolution(coarse.t, q_b_n, min(fine_heading_sigma_deg, coarse.heading_sigma_deg),
                             min(fine_level_sigma_deg, coarse.level_sigma_deg), coarse.rho, coarse.trace_P,
                             coarse.n_obs)
 

@@ -115,17 +115,17 @@ def record_angles(const double[::1] q):
             heading_deg if heading_deg < 360.0 else 0.0, asin(c21) / DEG, atan2(-C[6], C[8]) / DEG)
 
 
-def with_heading_of_one(const double[:, :] C_level, const double[:, :] C_heading):
-    """C_b^n (3, 3) with the tilt of ``C_level`` and the heading of ``C_heading``: conventions.with_heading_of (the
-    turn about Up by φ_U of C_level C_headingᵀ, through Shepperd's quaternion and its rotation vector)."""
+cdef void _with_heading_of(const double* C_level, const double* C_heading, double* out) noexcept nogil:
+    """out (9) = C_b^n with the tilt of ``C_level`` and the heading of ``C_heading`` (row-major 9 each): the turn about
+    Up by φ_U of C_level C_headingᵀ, through Shepperd's quaternion and its rotation vector."""
     cdef double M[9]
     cdef double q[4]
     cdef int i, j
     cdef double s, angle, scale, phi_up, c, sn
     for i in range(3):
         for j in range(3):
-            M[3 * i + j] = C_level[i, 0] * C_heading[j, 0] + C_level[i, 1] * C_heading[j, 1] + \
-                C_level[i, 2] * C_heading[j, 2]
+            M[3 * i + j] = C_level[3 * i] * C_heading[3 * j] + C_level[3 * i + 1] * C_heading[3 * j + 1] + \
+                C_level[3 * i + 2] * C_heading[3 * j + 2]
     _shepperd(M, q)
     _normalize(q)   # again, as rotvec_from_quat does
     s = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
@@ -133,10 +133,51 @@ def with_heading_of_one(const double[:, :] C_level, const double[:, :] C_heading
     scale = angle / s if s > 1e-12 else 2.0
     phi_up = -(scale * q[3])
     c, sn = cos(phi_up), sin(phi_up)
+    for j in range(3):
+        out[j] = c * C_level[j] - sn * C_level[3 + j]
+        out[3 + j] = sn * C_level[j] + c * C_level[3 + j]
+        out[6 + j] = C_level[6 + j]
+
+
+def with_heading_of_one(const double[:, :] C_level, const double[:, :] C_heading):
+    """C_b^n (3, 3) with the tilt of ``C_level`` and the heading of ``C_heading``: conventions.with_heading_of."""
+    cdef double L[9]
+    cdef double H[9]
+    cdef int i, j
+    for i in range(3):
+        for j in range(3):
+            L[3 * i + j], H[3 * i + j] = C_level[i, j], C_heading[i, j]
     out = np.empty((3, 3))
     cdef double[:, ::1] o = out
-    for j in range(3):
-        o[0, j] = c * C_level[0, j] - sn * C_level[1, j]
-        o[1, j] = sn * C_level[0, j] + c * C_level[1, j]
-        o[2, j] = C_level[2, j]
+    _with_heading_of(L, H, &o[0, 0])
+    return out
+
+
+def output_quaternion(const double[::1] q_coarse, double coarse_heading_sigma_deg, double coarse_level_sigma_deg,
+                      const double[:, :] C_fine, double fine_heading_sigma_deg, double fine_level_sigma_deg):
+    """The output rule's attitude (records.smaller_sigma_solution): the level of whichever of the coarse attitude
+    (``q_coarse``) and the fine one (``C_fine``) claims the smaller level σ, the heading of whichever claims the
+    smaller heading σ, as a quaternion [w, x, y, z] (w ≥ 0); None where the coarse one claims neither."""
+    cdef double C[9]
+    cdef double F[9]
+    cdef double M[9]
+    cdef bint level_fine = fine_level_sigma_deg < coarse_level_sigma_deg
+    cdef bint heading_fine = fine_heading_sigma_deg < coarse_heading_sigma_deg
+    cdef const double* level
+    cdef const double* heading
+    cdef int i, j
+    if not level_fine and not heading_fine:
+        return None
+    _dcm(q_coarse[0], q_coarse[1], q_coarse[2], q_coarse[3], C)
+    for i in range(3):
+        for j in range(3):
+            F[3 * i + j] = C_fine[i, j]
+    out = np.empty(4)
+    cdef double[::1] o = out
+    if level_fine == heading_fine:
+        _shepperd(F, &o[0])
+    else:
+        level, heading = (&F[0] if level_fine else &C[0]), (&F[0] if heading_fine else &C[0])
+        _with_heading_of(level, heading, M)
+        _shepperd(M, &o[0])
     return out

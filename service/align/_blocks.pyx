@@ -6,14 +6,15 @@ them to the noise meter, take the compass loops' step with the gains of the sche
 under K's attitude, and move on. :class:`FixedBaseBlocks` runs that sequence for a run of blocks in one C loop, with
 the same functions the single kernels wrap (the .pxi files), in the order ``AlignmentPipeline`` calls them: the
 same bits. It hands the block back to the pipeline's Python steps wherever they decide something (:meth:`run`
-returns which): a noise verdict due, the step that fills the loops' store (the stored-data passes start), a velocity
-that calls for the estimate's σ (a quarter of the motion threshold); the pipeline calls it only while nothing else
-is pending (no epoch, the loops running and no passes under way, no motion episode: ``pipeline._blocks_ready``).
+returns which): a noise verdict due, the hand-over to the loops, the step that fills the loops' store (the
+stored-data passes start), a velocity that calls for the estimate's σ (a quarter of the motion threshold); the
+pipeline calls it only while nothing else is pending (no epoch, no passes under way, no motion episode:
+``pipeline._blocks_ready``).
 
 Units and frames as in the modules it stands in for: time s, α and β m/s (b0, n0 axes), rates rad/s, matrices
 row-major.
 """
-from libc.math cimport ceil, cos, fabs, log2, pow, sin, sqrt
+from libc.math cimport M_PI, ceil, cos, fabs, log2, pow, sin, sqrt
 
 include "_linalg.pxi"
 include "_quaternion.pxi"
@@ -30,7 +31,8 @@ VERDICT = 1
 """The block's observations folded and fed to the noise meter, whose verdict is due: the verdict and the block's
 control step are left (:meth:`FixedBaseBlocks.run` with ``resume`` takes the step)."""
 CONTROL = 2
-"""The block's observations folded and measured; its control step fills the loops' store, whose passes start then."""
+"""The block's observations folded and measured; its control step is the Python steps': the hand-over to the loops,
+or the step that fills their store (the passes start)."""
 MOTION = 3
 """The block's control step taken but for the motion check, which needs the estimate's σ."""
 
@@ -40,6 +42,8 @@ cdef enum:
     MAX_KNOTS = 32
 
 cdef double SUSPECT_FRACTION = 0.25   # service/align/disturbance.SUSPECT_FRACTION
+cdef double ESTIMATOR_EFFICIENCY = 2.0   # service/align/sensor_model.ESTIMATOR_EFFICIENCY
+cdef double DEG = M_PI / 180.0
 
 
 cdef double _geometric(const double* knots, const double* values, int n, double t) noexcept nogil:
@@ -81,16 +85,19 @@ cdef class FixedBaseBlocks:
     cdef double azimuth_sigma[MAX_KNOTS]
     cdef double radius_m, omega_cos, omega_sin, loops_gravity
     cdef double omega_ie_n[3]
+    cdef int handover   # 0 by σ, 1 at a time
+    cdef double handover_time_s, handover_min_s, handover_sigma_deg, sigma_unknown_deg
     cdef double keys[F_SLOTS][KEY]
     cdef double F[F_SLOTS][64]
     cdef int n_F, next_F
 
     def __init__(self, double lat, double gravity, solver, int policy, noise, noise_constants, motion,
-                 check_interval_s, fine):
+                 check_interval_s, fine, handover, double sigma_unknown_deg):
         """``solver``: the RecursiveK and its gain ``policy`` (solvers._GAIN_POLICY); ``noise``: the NoiseMeter or
         None, with ``noise_constants`` (settle steps, outlier factor, least outlier count, verdict steps);
         ``motion``: the MotionMonitor or None, checked every ``check_interval_s``; ``fine``: the FineAlignment or None
-        (its loops' schedule and site constants)."""
+        (its loops' schedule and site constants), with the compass configuration's ``handover`` (its kind, time,
+        least time and σ) and σ's ceiling ``sigma_unknown_deg``."""
         cdef int i
         self.lat, self.gravity = lat, gravity
         self.trace_Q, self.fixed_rho, self.policy = solver.trace_Q, solver.fixed_rho, policy
@@ -117,6 +124,9 @@ cdef class FixedBaseBlocks:
             self.omega_cos, self.omega_sin = loops.omega_cos, loops.omega_sin
             for i in range(3):
                 self.omega_ie_n[i] = loops.omega_ie_n[i]
+            self.handover = 1 if handover.handover == "time" else 0
+            self.handover_time_s, self.handover_min_s = handover.handover_time_s, handover.handover_min_s
+            self.handover_sigma_deg, self.sigma_unknown_deg = handover.handover_sigma_deg, sigma_unknown_deg
 
     cdef const double* _transition_of(self, const double* key) noexcept nogil:
         """F of ``key`` (:data:`KEY` values), from the kept ones or computed (the oldest kept one replaced)."""
@@ -139,6 +149,25 @@ cdef class FixedBaseBlocks:
         _transition(key[0], key[1], key[2], key[3] != 0.0, key[4], key[5], key[6], key[7], key[8],
                     self.loops_gravity, self.radius_m, self.omega_cos, self.omega_sin, key[9], self.F[s])
         return self.F[s]
+
+    cdef bint _handover_due(self, double elapsed_s, long n_obs, const double* terms) noexcept nogil:
+        """FixedBase._handover_due: at the configured time, or once the noise part of the coarse heading σ is within
+        the threshold (``terms``: :meth:`FixedBase.handover_terms`, the last the data's check)."""
+        cdef double drift2, noise_heading2, heading2, heading_deg
+        if self.handover == 1:
+            return elapsed_s >= self.handover_time_s
+        if n_obs == 0 or elapsed_s < self.handover_min_s or terms[6] != 0.0:
+            return False
+        if elapsed_s <= 0.0:   # sensor_model.inertial_alignment_sigma
+            heading_deg = self.sigma_unknown_deg
+        else:
+            drift2 = pow(terms[4] * elapsed_s, 2.0)
+            noise_heading2 = terms[0] / pow(elapsed_s, 3.0) + terms[1] / elapsed_s + terms[2] / pow(elapsed_s, 5.0)
+            heading2 = terms[3] + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
+            heading_deg = min(sqrt(heading2) / DEG, self.sigma_unknown_deg)
+        # FixedBase._noise_part: the datasheet's bias limit taken out
+        heading2 = max(pow(heading_deg * DEG, 2.0) - pow(terms[5], 2.0), 0.0)
+        return sqrt(heading2 / ESTIMATOR_EFFICIENCY) / DEG <= self.handover_sigma_deg
 
     def run(self, pipeline, Py_ssize_t b, Py_ssize_t limit, Py_ssize_t folded, Py_ssize_t measured, bint resume,
             const Py_ssize_t[::1] ends, const Py_ssize_t[::1] fold_end, const double[:] t, const double[:] elapsed,
@@ -202,14 +231,20 @@ cdef class FixedBaseBlocks:
         cdef double[:, ::1] C_b0_p, P, stored_dalpha
         cdef double[::1] V, stored_dt
         cdef Py_ssize_t stored = 0, capacity = 0
-        cdef bint passes_done = True
+        cdef bint passes_done = True, active = False
+        cdef double handover_terms[7]
         cdef double I_E = 0.0, I_N = 0.0, y = 0.0, t_loop_s = 0.0, earth_sign = 1.0, vrw2 = 0.0, arw2 = 0.0
         cdef bint azimuth_on = False
         if self.with_fine:
             state = fine.state
-            C_b0_p, V, P = state.C_b0_p, state.V, state.P
-            I_E, I_N, y, t_loop_s = state.I_E, state.I_N, state.y, state.t_loop_s
-            azimuth_on, earth_sign = state.azimuth_on, state.earth_sign
+            active = state is not None
+            if active:
+                C_b0_p, V, P = state.C_b0_p, state.V, state.P
+                I_E, I_N, y, t_loop_s = state.I_E, state.I_N, state.y, state.t_loop_s
+                azimuth_on, earth_sign = state.azimuth_on, state.earth_sign
+            else:
+                for i, term in enumerate(pipeline.mode.handover_terms()):
+                    handover_terms[i] = term
             grade = fine.loops.grade
             buffer = fine.buffer
             stored_dalpha, stored_dt, stored, capacity = buffer.dalpha, buffer.dt_s, buffer.count, buffer.capacity
@@ -250,8 +285,9 @@ cdef class FixedBaseBlocks:
             if verdict_due:
                 stage = VERDICT
                 break
-            if self.with_fine and stored == capacity - 1 and not passes_done:
-                stage = CONTROL   # this step fills the store: FineAlignment.feed starts the passes
+            if self.with_fine and ((active and stored == capacity - 1 and not passes_done) or
+                                   (not active and self._handover_due(elapsed[ends[c]], n_obs, handover_terms))):
+                stage = CONTROL   # the hand-over, or the step that fills the store (FineAlignment.feed starts the passes)
                 break
             # the control step: Δα and Δ since the last one
             e = ends[c]
@@ -262,13 +298,14 @@ cdef class FixedBaseBlocks:
             dt_s = t_end - t_step
             t_step = t_end
             stepped = e
-            if self.with_fine:   # FineAlignment.feed: the store, then CompassLoops.step: the schedule's gains, the
-                # azimuth switch, F, Q, the step
+            if self.with_fine:   # FineAlignment.feed: the store
                 if stored < capacity:
                     for i in range(3):
                         stored_dalpha[stored, i] = dalpha[i]
                     stored_dt[stored] = dt_s
                     stored += 1
+                    passes_done = passes_done or (not active and stored == capacity)   # the loops start too late
+            if active:   # CompassLoops.step: the schedule's gains, the azimuth switch, F, Q, the step
                 level_s = _geometric(self.knots, self.level_sigma, self.n_knots, t_loop_s)
                 azimuth_s = _geometric(self.knots, self.azimuth_sigma, self.n_knots, t_loop_s)
                 key[0] = 3.0 * level_s
@@ -341,9 +378,10 @@ cdef class FixedBaseBlocks:
             if checked:
                 motion.window_speed_mps, motion.suspect = window_speed, False
         if self.with_fine:
-            state.I_E, state.I_N, state.y, state.t_loop_s = I_E, I_N, y, t_loop_s
-            state.azimuth_on = azimuth_on
+            if active:
+                state.I_E, state.I_N, state.y, state.t_loop_s = I_E, I_N, y, t_loop_s
+                state.azimuth_on = azimuth_on
             buffer.count = stored
-            fine._omega_p = None
+            fine.passes_done = passes_done
         return c, stage, folded
 

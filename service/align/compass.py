@@ -44,7 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._compass import compass_step, compass_steps, transition
+from ._compass import compass_step, compass_steps, platform_attitude, transition
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
@@ -194,22 +194,15 @@ class CompassLoops:
         level = level_gains(level_sigma, self.gravity, self.radius_m)
         return level, azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
 
-    def commanded_rate(self, state: CompassState) -> np.ndarray:
-        """ω_c (E, N, U) in rad/s from the state at the start of a step."""
-        return self._command(state, *self._gains(state))
-
-    def _command(self, state: CompassState, level: tuple, azimuth: tuple | None) -> np.ndarray:
-        K2L = level[1]
-        V_E, V_N = state.V
-        if state.azimuth_on and azimuth is not None:
-            omega_E = -(1.0 + azimuth[1]) * V_N / self.radius_m
-        else:
-            omega_E = -(1.0 + K2L) * V_N / self.radius_m - state.I_N
-        return np.array([omega_E, (1.0 + K2L) * V_E / self.radius_m + state.I_E, state.y])
-
-    def platform_rate(self, state: CompassState) -> np.ndarray:
-        """ω_p = s ω_ie^n + ω_c, the rate of the platform frame over inertial space (rad/s)."""
-        return state.earth_sign * self.omega_ie_n + self.commanded_rate(state)
+    def attitude(self, state: CompassState, C_b_b0: np.ndarray, since_step_s: float) -> np.ndarray:
+        """C_b^n (3, 3) of the body attitude C_{b}^{b0} (3, 3), ``since_step_s`` after the state's last step: the
+        platform turned on at ω_p = s ω_ie^n + ω_c, the rate the state commands (the module docstring), compiled
+        (_compass.pyx)."""
+        level, azimuth = self._gains(state)
+        on = state.azimuth_on and azimuth is not None
+        return platform_attitude(state.C_b0_p, state.V, state.I_E, state.I_N, state.y, on, level[1],
+                                 azimuth[1] if on else 0.0, state.earth_sign, self.omega_ie_n, self.radius_m,
+                                 since_step_s, np.ascontiguousarray(C_b_b0, dtype=float))
 
     def step(self, state: CompassState, dalpha_b0: np.ndarray, dt_s: float, advance_schedule: bool = True) -> None:
         """Advance ``state`` by one control step with the b0-frame velocity increment Δα (m/s).

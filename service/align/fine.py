@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .compass import CompassLoops, CompassState, GainSchedule, rotation_matrix
+from .compass import CompassLoops, CompassState, GainSchedule
 from .earth import Site
 from .sensor_model import AttitudeSigma, SensorGrade
 from .stored import RepeatedNavigation, StepBuffer
@@ -38,7 +38,6 @@ class FineAlignment:
         self.state: CompassState | None = None
         self.passes: RepeatedNavigation | None = None
         self.passes_done = capacity == 0
-        self._omega_p: np.ndarray | None = None   # the platform rate of the state, once a record asks (per step)
 
     @property
     def active(self) -> bool:
@@ -56,7 +55,6 @@ class FineAlignment:
         """Hand-over: start the loops from attitude C_b^n (3, 3) with its 1-sigma noise errors,
         entering the gain schedule at ``t_loop_s``."""
         self.state = self.loops.start(C_b_n, C_b_b0, tilt_sigma_rad, heading_sigma_rad, t_loop_s)
-        self._omega_p = None
 
     def feed(self, dalpha_b0: np.ndarray, dt_s: float) -> None:
         """One control step of data: Δα (3,) m/s in b0 axes over the last ``dt_s`` seconds."""
@@ -74,14 +72,11 @@ class FineAlignment:
         if self.passes is not None and self.passes.run(self.pass_steps):
             self.state = self.passes.state
             self.passes, self.passes_done = None, True
-        self._omega_p = None
 
     def attitude(self, C_b_b0: np.ndarray, since_step_s: float) -> np.ndarray:
         """C_b^n (3, 3) of the body attitude C_{b}^{b0}, ``since_step_s`` after the last control step: the platform
-        turned on at the rate the state commands (found at the first record after a step: only records read it)."""
-        if self._omega_p is None:
-            self._omega_p = self.loops.platform_rate(self.state)
-        return rotation_matrix(-since_step_s * self._omega_p) @ self.state.C_b0_p @ C_b_b0
+        turned on at the rate the state commands."""
+        return self.loops.attitude(self.state, C_b_b0, since_step_s)
 
     @property
     def sigma(self) -> AttitudeSigma:

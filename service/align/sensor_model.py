@@ -118,8 +118,20 @@ class _SigmaTerms:
     gravity2: float
 
 
-@functools.lru_cache(maxsize=64)
 def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
+    """The terms of a grade and site: the last ones asked for again at once (a record asks three times, and hashing
+    a grade costs more than the arithmetic it saves), others from a cache."""
+    global _last_terms
+    last_grade, last_lat, last_gravity, terms = _last_terms
+    if grade is last_grade and lat == last_lat and gravity == last_gravity:
+        return terms
+    terms = _cached_sigma_terms(grade, lat, gravity)
+    _last_terms = grade, lat, gravity, terms
+    return terms
+
+
+@functools.lru_cache(maxsize=64)
+def _cached_sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
     heading = np.hypot(np.tan(lat) * grade.acc_bias_ms2 / gravity, grade.gyro_bias_rad_s / (OMEGA_IE * np.cos(lat)))
     bias = (float(heading), grade.acc_bias_ms2 / gravity)
     w_cos = OMEGA_IE * np.cos(lat)
@@ -127,6 +139,9 @@ def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
                        1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2,
                        320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * np.cos(lat)) ** 2,
                        4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
+
+
+_last_terms: tuple = (None, np.nan, np.nan, None)
 
 
 def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:

@@ -18,7 +18,7 @@ from ..align.compass import GainSchedule
 from ..align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from ..align.fine import FineAlignment
 from ..align.observations import FixedSiteSource
-from ..align.sensor_model import ESTIMATOR_EFFICIENCY, bias_limit_rad
+from ..align.sensor_model import ESTIMATOR_EFFICIENCY, _sigma_terms, bias_limit_rad
 from ..align.solvers import make_solver
 from ..align.swing_bias import SwingBias
 from ..records import coarse_record, result_record, smaller_sigma_solution
@@ -99,6 +99,18 @@ class FixedBase:
         # the noise part only: the bias floor stays whatever the stage, and above the threshold
         # for a poor gyro it would keep the loops from ever starting
         return self._noise_part(*p.coarse.sigma(elapsed_s))[1] / DEG <= f.handover_sigma_deg
+
+    def handover_terms(self) -> tuple[float, ...]:
+        """What the compiled loop (service/align/_blocks.pyx) needs of the hand-over test: the noise terms of the
+        coarse σ's heading (sensor_model.inertial_alignment_sigma: the accelerometer's over T³, the gyro's over T,
+        a bounded disturbance's over T⁵, rad² sᵏ), its bias limit squared (rad²) and the gyro bias (rad/s) of the
+        grade σ takes, the datasheet's heading bias limit (rad) and whether the data's noise has checked σ."""
+        p = self.p
+        coarse = p.coarse
+        terms = _sigma_terms(coarse.sigma_grade, coarse.source.site.lat, coarse.source.site.gravity)
+        bias_heading, _ = bias_limit_rad(coarse.grade, coarse.source.site.lat, coarse.source.site.gravity)
+        return (terms.acc_heading, terms.gyro_heading, terms.bounded_heading, terms.bias2[0],
+                coarse.sigma_grade.gyro_bias_rad_s, bias_heading, p.noise_unchecked)
 
     def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
         """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit.

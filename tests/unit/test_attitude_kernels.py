@@ -18,6 +18,7 @@ import pytest
 from sinsalign.service.align._attitude import (
     chained_quaternion,
     dcm_from_quat_one,
+    output_quaternion,
     quaternion_from_K,
     record_angles,
     with_heading_of_one,
@@ -30,6 +31,7 @@ from sinsalign.service.align.conventions import (
     misalignment,
     quat_from_dcm,
     quat_normalize,
+    with_heading_of,
 )
 from sinsalign.service.align.earth import C_n_n0_fixed
 from sinsalign.service.align.solvers import delta_K
@@ -123,3 +125,19 @@ def test_the_chained_coarse_attitude_and_the_heading_turn_are_the_numpy_forms_to
         c, s = np.cos(phi_up), np.sin(phi_up)
         assert np.abs(turned - np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ C_level).max() < 16 * EPS
         assert abs(turned[2] - C_level[2]).max() == 0.0   # a turn about Up: the tilt of the first, as it was
+
+
+def test_the_output_rule_takes_level_and_heading_from_the_smaller_sigmas():
+    rng = np.random.default_rng(9)
+    qs = random_quaternions(500, rng)
+    for q_coarse, q_fine in zip(qs, rng.permutation(qs), strict=True):
+        C_coarse, C_fine = dcm_from_quat(q_coarse), dcm_from_quat(q_fine)
+        coarse_sigmas, fine_sigmas = rng.uniform(0.01, 1.0, 2), rng.uniform(0.01, 1.0, 2)
+        level_fine, heading_fine = fine_sigmas[1] < coarse_sigmas[1], fine_sigmas[0] < coarse_sigmas[0]
+        q = output_quaternion(q_coarse, *coarse_sigmas, C_fine, *fine_sigmas)
+        if not level_fine and not heading_fine:
+            assert q is None
+            continue
+        C_level = C_fine if level_fine else C_coarse
+        want = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
+        assert np.array_equal(q, quat_from_dcm(want))   # the numpy forms' bits

@@ -30,22 +30,30 @@ into a heading ε / (Ω cos L), 2e4 s at this latitude, so 1e-16 rad per 0.1-s s
 2e-11 rad apart (1e-9°)."""
 
 
-def numpy_step(loops: CompassLoops, state: CompassState, dalpha_b0: np.ndarray, dt_s: float,
-               advance_schedule: bool = True) -> None:
-    """The control step in numpy (compass.py's module docstring), the form the kernel must match, its transition
-    matrix the numpy exponential of the error model."""
+def numpy_platform_rate(loops: CompassLoops, state: CompassState) -> np.ndarray:
+    """ω_p = s ω_ie^n + ω_c (rad/s) at the state's gains (the azimuth loop switched on first where they say so)."""
     level, azimuth = loops.gains_at(state.t_loop_s)
     if azimuth is not None and not state.azimuth_on:
         state.azimuth_on, state.I_N, state.y = True, 0.0, 0.0
-    K1L, K2L, K3L = level
-    north = azimuth if state.azimuth_on else level
+    K2L = level[1]
     V_E, V_N = state.V
     if state.azimuth_on:
         omega_E = -(1.0 + azimuth[1]) * V_N / loops.radius_m
     else:
         omega_E = -(1.0 + K2L) * V_N / loops.radius_m - state.I_N
     omega_c = np.array([omega_E, (1.0 + K2L) * V_E / loops.radius_m + state.I_E, state.y])
-    half_turn = rotation_matrix(-0.5 * dt_s * (state.earth_sign * loops.omega_ie_n + omega_c))
+    return state.earth_sign * loops.omega_ie_n + omega_c
+
+
+def numpy_step(loops: CompassLoops, state: CompassState, dalpha_b0: np.ndarray, dt_s: float,
+               advance_schedule: bool = True) -> None:
+    """The control step in numpy (compass.py's module docstring), the form the kernel must match, its transition
+    matrix the numpy exponential of the error model."""
+    half_turn = rotation_matrix(-0.5 * dt_s * numpy_platform_rate(loops, state))
+    level, azimuth = loops.gains_at(state.t_loop_s)
+    K1L, _, K3L = level
+    north = azimuth if state.azimuth_on else level
+    V_E, V_N = state.V
     dv = half_turn @ (state.C_b0_p @ dalpha_b0)
     w_up = state.earth_sign * loops.omega_sin
     state.V = np.array([V_E + dv[0] + (2.0 * w_up * V_N - K1L * V_E) * dt_s,
@@ -91,6 +99,10 @@ def test_the_compiled_step_is_the_numpy_step_over_a_schedule_and_reverse_passes(
         loops.step(compiled, dalpha, DT_S, advance)
         numpy_step(loops, reference, dalpha, DT_S, advance)
         assert_close(compiled, reference)
+        # a record's attitude between two steps: the platform turned on at the state's rate
+        C_b_b0, since_s = dcm_from_euler(*rng.uniform(-3.0, 3.0, 3)), rng.uniform(0.0, DT_S)
+        turned = rotation_matrix(-since_s * numpy_platform_rate(loops, compiled)) @ compiled.C_b0_p @ C_b_b0
+        assert np.abs(loops.attitude(compiled, C_b_b0, since_s) - turned).max() < 8 * np.finfo(float).eps
     assert compiled.azimuth_on and compiled.t_loop_s > c.schedule_time_s[-1]
 
 
