@@ -36,7 +36,8 @@ class ResultRecord:
 
     def as_dict(self) -> dict[str, Any]:
         """The fields, without the mounting's where there is none (every mode but transfer alignment)."""
-        return {name: getattr(self, name) for name in self.__slots__
+        names = self.__slots__ if self.mount_q is not None or self.mount_sigma_deg is not None else _PLAIN_FIELDS
+        return {name: getattr(self, name) for name in names
                 if not (name.startswith("mount_") and getattr(self, name) is None)}
 
     def wire_dict(self) -> dict[str, Any]:
@@ -58,10 +59,18 @@ class ResultRecord:
         """One line of strict JSON. A number that is not finite (trace_P aside, carried as null) is a fault upstream;
         it is refused here, naming the fields, rather than written as NaN or Infinity, which no JSON reader takes."""
         d = self.wire_dict()
-        bad = _non_finite(d)
-        if bad:
-            raise ValueError(f"result at t = {self.t!r}: {', '.join(bad)} not finite; not written")
-        return json.dumps(d, separators=(",", ":"), allow_nan=False)
+        try:
+            return _ENCODER.encode(d)
+        except ValueError:
+            bad = _non_finite(d)
+            if not bad:
+                raise
+            raise ValueError(f"result at t = {self.t!r}: {', '.join(bad)} not finite; not written") from None
+
+
+_PLAIN_FIELDS = tuple(name for name in ResultRecord.__slots__ if not name.startswith("mount_"))
+_ENCODER = json.JSONEncoder(separators=(",", ":"), allow_nan=False)
+"""json.dumps' encoder for these arguments, made once (dumps makes one per call)."""
 
 
 def _non_finite(wire: dict[str, Any]) -> list[str]:

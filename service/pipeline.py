@@ -357,9 +357,10 @@ class AlignmentPipeline:
         epochs_by = [0, *np.searchsorted(epochs, ends_array, side="right").tolist()]
         blocks = self._blocks
         if blocks is not None:   # the compiled loop's arrays as it reads them
-            observed_s, observed_alpha = np.ascontiguousarray(observed_s), np.ascontiguousarray(observed_alpha)
+            blocks.chunk(ends_array, fold_end_array, t, elapsed, alpha, dK, trace_R,
+                         np.ascontiguousarray(observed_s), np.ascontiguousarray(observed_alpha))
             # each run stops at the next block with epochs (their records are Python's) or a deferred last block
-            limits = np.append(np.unique(np.searchsorted(ends_array, epochs)),
+            limits = np.append(np.searchsorted(ends_array, epochs),
                                len(ends_array) - 1 if self._defer_control else len(ends_array)).tolist()
         ends, fold_end, folded, b = ends_array.tolist(), fold_end_array.tolist(), 0, 0
         while b < len(ends):
@@ -376,9 +377,7 @@ class AlignmentPipeline:
                 limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
                 resume = False
                 while limit > b and self._blocks_ready():
-                    b, stage, folded = blocks.run(self, b, limit, folded, measured, resume, ends_array,
-                                                  fold_end_array, t, elapsed, alpha, dK, trace_R, observed_s,
-                                                  observed_alpha)
+                    b, stage, folded = blocks.run(self, b, limit, folded, measured, resume)
                     if stage != VERDICT:
                         break
                     self._take_verdict()   # then the block's control step, compiled again

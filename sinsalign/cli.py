@@ -550,11 +550,16 @@ def _check_scenario(args: argparse.Namespace) -> None:
         raise ConfigError(exc.args[0]) from None
 
 
-def main(argv: list[str] | None = None) -> int:
-    from zenoh import ZError
-
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """The errors a command reports in one line (exit 2): a bad log, configuration or file, and a Zenoh session's
+    (only a command that opened one can raise it: Zenoh is not imported for the others)."""
     from sinsalign.protocol.imu_log import LogFormatError
     from sinsalign.service.config import ConfigError
+    zenoh = sys.modules.get("zenoh")
+    return (LogFormatError, ConfigError, OSError) + ((zenoh.ZError,) if zenoh is not None else ())
+
+
+def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     args.argv = sys.argv[1:] if argv is None else list(argv)   # the command line a generated table is stamped with
@@ -564,11 +569,13 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _check_scenario(args)
         return args.func(args)
-    except (LogFormatError, ConfigError, OSError, ZError) as exc:
-        print(f"sinsalign {args.command}: error: {exc}", file=sys.stderr)
-        return 2
     except KeyboardInterrupt:
         return 130
+    except Exception as exc:
+        if not isinstance(exc, _user_errors()):
+            raise
+        print(f"sinsalign {args.command}: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -87,6 +87,18 @@ cdef class FixedBaseBlocks:
     cdef double omega_ie_n[3]
     cdef int handover   # 0 by σ, 1 at a time
     cdef double handover_time_s, handover_min_s, handover_sigma_deg, sigma_unknown_deg
+    # the estimators' arrays, for their life (a restart builds new ones and a new loop), and the chunk's
+    cdef double[:, ::1] alpha_sum, beta_sum, last_sums, ring_alpha, ring_beta, stored_dalpha
+    cdef const long[::1] lags
+    cdef double[::1] sums, counts, ring_elapsed, stored_dt
+    cdef double[:, :, ::1] ring_C
+    cdef const Py_ssize_t[::1] ends, fold_end
+    cdef const double[:] t, elapsed
+    cdef const double[:, :] alpha
+    cdef object alpha_array
+    cdef const double[:, :, ::1] dK
+    cdef const double[::1] trace_R, observed_s
+    cdef const double[:, ::1] observed_alpha
     cdef double keys[F_SLOTS][KEY]
     cdef double F[F_SLOTS][64]
     cdef int n_F, next_F
@@ -104,10 +116,14 @@ cdef class FixedBaseBlocks:
         self.with_noise = noise is not None
         if self.with_noise:
             self.settle_steps, self.outlier_factor, self.min_outlier_count, self.verdict_steps = noise_constants
+            self.alpha_sum, self.beta_sum, self.last_sums = noise._alpha_sum, noise._beta_sum, noise._last_sums
+            self.lags, self.sums, self.counts = noise._lags, noise._sums, noise._counts
         self.with_motion = motion is not None
         if self.with_motion:
             self.ring_n, self.threshold = motion._n, motion.threshold_mps
             self.check_interval_s = check_interval_s
+            self.ring_elapsed, self.ring_alpha, self.ring_beta = motion._elapsed, motion._alpha, motion._beta
+            self.ring_C = motion._C
         self.with_fine = fine is not None
         self.n_F = self.next_F = 0
         if self.with_fine:
@@ -124,6 +140,7 @@ cdef class FixedBaseBlocks:
             self.omega_cos, self.omega_sin = loops.omega_cos, loops.omega_sin
             for i in range(3):
                 self.omega_ie_n[i] = loops.omega_ie_n[i]
+            self.stored_dalpha, self.stored_dt = fine.buffer.dalpha, fine.buffer.dt_s
             self.handover = 1 if handover.handover == "time" else 0
             self.handover_time_s, self.handover_min_s = handover.handover_time_s, handover.handover_min_s
             self.handover_sigma_deg, self.sigma_unknown_deg = handover.handover_sigma_deg, sigma_unknown_deg
@@ -169,16 +186,27 @@ cdef class FixedBaseBlocks:
         heading2 = max(pow(heading_deg * DEG, 2.0) - pow(terms[5], 2.0), 0.0)
         return sqrt(heading2 / ESTIMATOR_EFFICIENCY) / DEG <= self.handover_sigma_deg
 
-    def run(self, pipeline, Py_ssize_t b, Py_ssize_t limit, Py_ssize_t folded, Py_ssize_t measured, bint resume,
-            const Py_ssize_t[::1] ends, const Py_ssize_t[::1] fold_end, const double[:] t, const double[:] elapsed,
-            alpha_array, const double[:, :, ::1] dK, const double[::1] trace_R,
-            const double[::1] observed_s, const double[:, ::1] observed_alpha):
-        """Blocks ``b`` to ``limit`` − 1 of a chunk (block c: its samples end at ``ends[c]``; its observations are
-        folded up to ``fold_end[c]``), the first with its observations folded up to ``folded`` already and measured
-        from ``measured`` on (``resume``: all of them folded and measured, its control step left). Returns (the
-        block it stopped at, :data:`DONE`, :data:`VERDICT`, :data:`CONTROL` or :data:`MOTION`, the observations
-        folded)."""
-        cdef const double[:, :] alpha = alpha_array
+    def chunk(self, const Py_ssize_t[::1] ends, const Py_ssize_t[::1] fold_end, const double[:] t,
+              const double[:] elapsed, alpha_array, const double[:, :, ::1] dK, const double[::1] trace_R,
+              const double[::1] observed_s, const double[:, ::1] observed_alpha) -> None:
+        """The chunk :meth:`run` takes its blocks from: block c's samples end at ``ends[c]`` (times ``t`` s, elapsed
+        since the start s, α (N, 3) m/s), its observations are folded up to ``fold_end[c]`` (δK, tr R, their times
+        and α as the noise meter takes them)."""
+        self.ends, self.fold_end, self.t, self.elapsed = ends, fold_end, t, elapsed
+        self.alpha_array, self.alpha = alpha_array, alpha_array
+        self.dK, self.trace_R, self.observed_s, self.observed_alpha = dK, trace_R, observed_s, observed_alpha
+
+    def run(self, pipeline, Py_ssize_t b, Py_ssize_t limit, Py_ssize_t folded, Py_ssize_t measured, bint resume):
+        """Blocks ``b`` to ``limit`` − 1 of the chunk (:meth:`chunk`), the first with its observations folded up to
+        ``folded`` already and measured from ``measured`` on (``resume``: all of them folded and measured, its
+        control step left). Returns (the block it stopped at, :data:`DONE`, :data:`VERDICT`, :data:`CONTROL` or
+        :data:`MOTION`, the observations folded)."""
+        cdef const Py_ssize_t[::1] ends = self.ends, fold_end = self.fold_end
+        cdef const double[:] t = self.t, elapsed = self.elapsed
+        cdef const double[:, :] alpha = self.alpha
+        cdef const double[:, :, ::1] dK = self.dK
+        cdef const double[::1] trace_R = self.trace_R, observed_s = self.observed_s
+        cdef const double[:, ::1] observed_alpha = self.observed_alpha
         cdef Py_ssize_t c = b, e, upto, i, j
         solver, noise, motion, fine = pipeline.coarse.solver, pipeline.noise, pipeline.motion, pipeline.fine
         # the solver
@@ -208,8 +236,8 @@ cdef class FixedBaseBlocks:
         cdef long steps = 0, bad_until = 0, outliers = 0
         cdef bint verdict_due = False
         if self.with_noise:
-            alpha_sum, beta_sum, last_sums = noise._alpha_sum, noise._beta_sum, noise._last_sums
-            lags, sums, counts = noise._lags, noise._sums, noise._counts
+            alpha_sum, beta_sum, last_sums = self.alpha_sum, self.beta_sum, self.last_sums
+            lags, sums, counts = self.lags, self.sums, self.counts
             steps, bad_until = noise.steps, noise._bad_until
             if noise.C_n0_b0 is not None:
                 with_rough = True
@@ -225,7 +253,8 @@ cdef class FixedBaseBlocks:
         cdef double window_speed = 0.0, speed = 0.0
         cdef bint checked = False
         if self.with_motion:
-            ring_elapsed, ring_alpha, ring_beta, ring_C = motion._elapsed, motion._alpha, motion._beta, motion._C
+            ring_elapsed, ring_alpha, ring_beta = self.ring_elapsed, self.ring_alpha, self.ring_beta
+            ring_C = self.ring_C
             ring_count = motion._count
         # the compass loops
         cdef double[:, ::1] C_b0_p, P, stored_dalpha
@@ -247,7 +276,8 @@ cdef class FixedBaseBlocks:
                     handover_terms[i] = term
             grade = fine.loops.grade
             buffer = fine.buffer
-            stored_dalpha, stored_dt, stored, capacity = buffer.dalpha, buffer.dt_s, buffer.count, buffer.capacity
+            stored_dalpha, stored_dt = self.stored_dalpha, self.stored_dt
+            stored, capacity = buffer.count, buffer.capacity
             passes_done = fine.passes_done
             vrw2, arw2 = pow(grade.acc_vrw_ms_rts, 2.0), pow(grade.gyro_arw_rad_rts, 2.0)
         cdef double key[KEY]
@@ -287,7 +317,7 @@ cdef class FixedBaseBlocks:
                 break
             if self.with_fine and ((active and stored == capacity - 1 and not passes_done) or
                                    (not active and self._handover_due(elapsed[ends[c]], n_obs, handover_terms))):
-                stage = CONTROL   # the hand-over, or the step that fills the store (FineAlignment.feed starts the passes)
+                stage = CONTROL   # the hand-over, or the step that fills the store (FineAlignment.feed starts passes)
                 break
             # the control step: Δα and Δ since the last one
             e = ends[c]
@@ -367,7 +397,7 @@ cdef class FixedBaseBlocks:
             q_out.flags.writeable = False
             solver._q = q_out
         if stepped >= 0:
-            pipeline._alpha_step = alpha_array[stepped]
+            pipeline._alpha_step = self.alpha_array[stepped]
             pipeline._t_step = t_step
         pipeline._next_check_s = next_check_s
         if self.with_noise:

@@ -223,7 +223,8 @@ class CompassLoops:
         """:meth:`step` over N control steps (Δα (N, 3) m/s, Δ (N,) s) with the loop time held (the stored-data
         passes), in one compiled call: the gains stay, so each step takes the transition of its length."""
         level, azimuth = self._azimuth_switch(state)
-        lengths, which = np.unique(dt_s, return_inverse=True)
+        lengths = np.array(sorted(set(dt_s.tolist())))   # np.unique's, without its first call's import of numpy.ma
+        which = np.searchsorted(lengths, dt_s)
         F = np.stack([self._transition(level, azimuth, state.earth_sign, float(d)) for d in lengths])
         Q = np.stack([self._process_noise(float(d)) for d in lengths])
         state.I_E, state.I_N, state.y = compass_steps(

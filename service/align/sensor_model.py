@@ -119,14 +119,14 @@ class _SigmaTerms:
 
 
 def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
-    """The terms of a grade and site: the last ones asked for again at once (a record asks three times, and hashing
-    a grade costs more than the arithmetic it saves), others from a cache."""
-    global _last_terms
-    last_grade, last_lat, last_gravity, terms = _last_terms
-    if grade is last_grade and lat == last_lat and gravity == last_gravity:
-        return terms
+    """The terms of a grade and site: the two last asked for kept by identity (a record asks for the datasheet's and
+    the measured grade's, and hashing a grade costs more than the arithmetic it saves), others from a cache."""
+    global _recent_terms
+    for recent in _recent_terms:
+        if grade is recent[0] and lat == recent[1] and gravity == recent[2]:
+            return recent[3]
     terms = _cached_sigma_terms(grade, lat, gravity)
-    _last_terms = grade, lat, gravity, terms
+    _recent_terms = ((grade, lat, gravity, terms), _recent_terms[0])
     return terms
 
 
@@ -141,7 +141,7 @@ def _cached_sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _Sigm
                        4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
 
 
-_last_terms: tuple = (None, np.nan, np.nan, None)
+_recent_terms: tuple = ((None, np.nan, np.nan, None),) * 2
 
 
 def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:

@@ -18,8 +18,11 @@ class _Counting:
     def __init__(self, blocks: object) -> None:
         self.blocks, self.completed = blocks, 0
 
-    def run(self, pipeline: AlignmentPipeline, b: int, limit: int, *arrays: object) -> tuple:
-        stopped = self.blocks.run(pipeline, b, limit, *arrays)
+    def chunk(self, *arrays: object) -> None:
+        self.blocks.chunk(*arrays)
+
+    def run(self, pipeline: AlignmentPipeline, b: int, limit: int, *state: object) -> tuple:
+        stopped = self.blocks.run(pipeline, b, limit, *state)
         self.completed += stopped[0] - b
         return stopped
 
@@ -56,6 +59,7 @@ def _records(monkeypatch: pytest.MonkeyPatch, name: str, seconds: float, overrid
     ("swing-drive-stop", 300.0, {}, False, None, 0.3),          # a motion episode, a restart
     ("parked-nodatasheet", 400.0, {}, False, 1000, 0.7),        # the data's noise replaces the datasheet's
     ("seed000-swing", 200.0, {"fine": {"enabled": False}}, False, 333, 0.8),
+    ("seed000-swing", 150.0, {"fine": {"compass": {"handover": "time", "handover_time_s": 20.0}}}, False, 1000, 0.8),
     ("seed001-swing", 200.0, {"alignment": {"solver": "request"}, "fine": {"compass": {"stored_pairs": 0}}},
      True, 70, 0.4),
 ])
