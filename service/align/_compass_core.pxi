@@ -38,15 +38,21 @@ cdef inline void _mat3_mul(const double* A, const double* B, double* out) noexce
 
 
 cdef inline void _mat8_mul(const double* A, const double* B, double* out) noexcept nogil:
-    """out = A B of 8×8 row-major matrices, each term added in index order."""
-    cdef double s
+    """out = A B of 8×8 row-major matrices, each term added in index order. The loops run i, k, j: each out[i, j]
+    still sums A[i, k] B[k, j] for k = 0 … 7 in that order (the same bits), and the inner loop over j runs along
+    rows, which the compiler can vectorise without reassociating a sum."""
+    cdef double row[8]
+    cdef double a
     cdef int i, j, k
     for i in range(8):
         for j in range(8):
-            s = 0.0
-            for k in range(8):
-                s = s + A[8 * i + k] * B[8 * k + j]
-            out[8 * i + j] = s
+            row[j] = 0.0
+        for k in range(8):
+            a = A[8 * i + k]
+            for j in range(8):
+                row[j] = row[j] + a * B[8 * k + j]
+        for j in range(8):
+            out[8 * i + j] = row[j]
 
 
 cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, const double* dalpha_b0,
@@ -63,6 +69,8 @@ cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, 
     cdef double Cv[3]
     cdef double dv[3]
     cdef double T[64]
+    cdef double Ft[64]
+    cdef double row[8]
     cdef double s
     cdef int i, j, k
     # the commanded rate from the state at the step's start, the platform rate and the half-step turn
@@ -96,14 +104,20 @@ cdef void _step(double* C_b0_p, double* V, double* I_E, double* I_N, double* y, 
     for i in range(3):
         for j in range(3):
             C_b0_p[3 * i + j] = 1.5 * C[3 * i + j] - 0.5 * CCtC[3 * i + j]
-    # P ← F P Fᵀ + Q, the upper triangle mirrored
+    # P ← F P Fᵀ + Q, the upper triangle mirrored; (F P) Fᵀ summed as _mat8_mul sums, k = 0 … 7 for each element
     _mat8_mul(F, P, T)
     for i in range(8):
+        for j in range(8):
+            Ft[8 * j + i] = F[8 * i + j]
+    for i in range(8):
+        for j in range(8):
+            row[j] = 0.0
+        for k in range(8):
+            s = T[8 * i + k]
+            for j in range(i, 8):
+                row[j] = row[j] + s * Ft[8 * k + j]
         for j in range(i, 8):
-            s = 0.0
-            for k in range(8):
-                s = s + T[8 * i + k] * F[8 * j + k]
-            P[8 * i + j] = s + Q[8 * i + j]
+            P[8 * i + j] = row[j] + Q[8 * i + j]
     for i in range(8):
         for j in range(i):
             P[8 * i + j] = P[8 * j + i]
