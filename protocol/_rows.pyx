@@ -14,7 +14,7 @@ exact path that names the file, line and column.
 from libc.math cimport isfinite
 from libc.stdint cimport int64_t, uint64_t
 from libc.stdlib cimport strtod
-from libc.string cimport memcpy
+from libc.string cimport memchr, memcpy
 from cpython.unicode cimport PyUnicode_AsUTF8AndSize
 
 import numpy as np
@@ -229,10 +229,64 @@ def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
     a reader thread parses while another runs the alignment."""
     if not text.isascii():
         return None
-    cdef Py_ssize_t n, rows
+    cdef Py_ssize_t n, rows, lines
     cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
-    out = np.empty((text.count("\n") + 1, ncols))
+    with nogil:
+        lines = _newlines(s, n)
+    out = np.empty((lines + 1, ncols))
     cdef double[:, ::1] o = out
     with nogil:
         rows = _parse(s, n, ncols, max_line_chars, &o[0, 0])
     return None if rows < 0 else out[:rows]
+
+
+cdef Py_ssize_t _newlines(const char* s, Py_ssize_t n) noexcept nogil:
+    """The newlines among the n characters at s (the C library's memchr finds each)."""
+    cdef Py_ssize_t count = 0
+    cdef const char* end = s + n
+    cdef const char* p = <const char*>memchr(s, b'\n', n)
+    while p != NULL:
+        count += 1
+        p = <const char*>memchr(p + 1, b'\n', end - p - 1)
+    return count
+
+
+def newlines(str text):
+    """``text.count("\n")``, counted without the interpreter's lock where the text is ASCII."""
+    if not text.isascii():
+        return text.count("\n")
+    cdef Py_ssize_t n, count
+    cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)
+    with nogil:
+        count = _newlines(s, n)
+    return count
+
+
+def rows_within(const double[:, ::1] block, const double[::1] low, const double[::1] high,
+                const unsigned char[::1] open_low, const unsigned char[::1] open_high, bint increasing,
+                double t_last):
+    """Whether every value of ``block`` (N, ncols) lies within its column's range (``low`` to ``high``, an end
+    excluded where ``open_low`` or ``open_high`` says; imu_log.Range.holds) and, with ``increasing``, each time (the
+    first column) exceeds the one before it (``t_last`` before the first: imu_log.first_not_increasing's steps).
+    One pass without the interpreter's lock: a reading thread checks its piece while another runs the alignment."""
+    cdef Py_ssize_t rows = block.shape[0], ncols = block.shape[1], i, j
+    cdef double v, previous = t_last
+    cdef bint good = True
+    if low.shape[0] != ncols or high.shape[0] != ncols or open_low.shape[0] != ncols or open_high.shape[0] != ncols:
+        raise ValueError("rows_within: one range per column")
+    with nogil:
+        for i in range(rows):
+            for j in range(ncols):
+                v = block[i, j]
+                if not ((v > low[j]) if open_low[j] else (v >= low[j])) or \
+                        not ((v < high[j]) if open_high[j] else (v <= high[j])):
+                    good = False
+                    break
+            if not good:
+                break
+            if increasing:
+                if not (block[i, 0] - previous > 0.0):
+                    good = False
+                    break
+                previous = block[i, 0]
+    return good

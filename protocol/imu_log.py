@@ -28,7 +28,7 @@ from typing import TextIO
 
 import numpy as np
 
-from ._rows import parse_rows
+from ._rows import newlines, parse_rows, rows_within
 from .plausibility import HEIGHT_RANGE_M, LATITUDE_RANGE_DEG, LONGITUDE_RANGE_DEG
 
 IMU_COLUMNS = ("t", "dthx", "dthy", "dthz", "dvx", "dvy", "dvz")
@@ -96,6 +96,9 @@ class Range:
         text = f"{'(' if self.open_low else '['}{self.low:g}, {self.high:g}{')' if self.open_high else ']'}"
         return f"{text} ({self.why})" if self.why else text
 
+
+ANY_NUMBER = Range(-math.inf, math.inf)
+"""A column without limits: any finite number."""
 
 SITE_RANGES = {
     "lat_deg": Range(*LATITUDE_RANGE_DEG, open_low=True, open_high=True, why="°; gyrocompassing needs Ω cos L"),
@@ -378,12 +381,13 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
     line by :func:`_line_segments`, which names the line.
     """
     line_no, t_last = first_line, -math.inf
+    ranges = _column_ranges(limits, columns)
     for text in _whole_lines(stream):
         # a piece without its line end (the file cut inside its last line, or the start of a line too long) goes to
         # the line reader, which names that line
         whole = text.endswith("\n") and RESTART_MARKER not in text
         block = parse_rows(text, len(columns), MAX_LINE_CHARS) if whole else None
-        if block is None or not _acceptable(block, columns, limits, increasing, t_last):
+        if block is None or not _acceptable(block, columns, limits, ranges, increasing, t_last):
             pieces = _line_segments(io.StringIO(text), path, line_no, columns, chunk_rows, increasing, limits, t_last)
         else:
             pieces = ((None, block[start:start + chunk_rows]) for start in range(0, len(block), chunk_rows))
@@ -393,7 +397,7 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
             if len(piece):
                 t_last = float(piece[-1, 0])
             yield reason, piece
-        line_no += text.count("\n")
+        line_no += newlines(text)
 
 
 CHUNK_CHARS = 1 << 19
@@ -418,12 +422,26 @@ def _whole_lines(stream: TextIO) -> Iterator[str]:
         yield carry
 
 
-def _acceptable(block: np.ndarray, columns: tuple[str, ...], limits: RowLimits | None, increasing: bool,
-                t_last: float) -> bool:
-    """No value of ``block`` beyond ``limits`` and, with ``increasing``, its times increasing after ``t_last``."""
+def _acceptable(block: np.ndarray, columns: tuple[str, ...], limits: RowLimits | None,
+                ranges: tuple[np.ndarray, ...] | None, increasing: bool, t_last: float) -> bool:
+    """No value of ``block`` beyond ``limits`` and, with ``increasing``, its times increasing after ``t_last``: one
+    compiled pass (``_rows.rows_within``) over the ``ranges`` of :func:`_column_ranges` where it gave them."""
+    if ranges is not None:
+        return rows_within(block, *ranges, increasing, t_last)
     if limits is not None and limits.problem(block, columns) is not None:
         return False
     return not increasing or first_not_increasing(block[:, 0], t_last) is None
+
+
+def _column_ranges(limits: RowLimits | None, columns: tuple[str, ...]) -> tuple[np.ndarray, ...] | None:
+    """Per column (low, high, open low, open high) of ``limits`` (no limit: any number); None where the limits
+    bound vectors too (RowLimits.norms)."""
+    if limits is not None and limits.norms:
+        return None
+    ranges = [ANY_NUMBER if limits is None else limits.cells.get(name, ANY_NUMBER) for name in columns]
+    return (np.array([r.low for r in ranges], dtype=float), np.array([r.high for r in ranges], dtype=float),
+            np.array([r.open_low for r in ranges], dtype=np.uint8),
+            np.array([r.open_high for r in ranges], dtype=np.uint8))
 
 
 def _line_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...], chunk_rows: int,

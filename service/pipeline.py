@@ -46,6 +46,22 @@ def grade_from(config: Config, datasheet: dict[str, float] | None = None) -> Sen
     return SensorGrade.from_datasheet(**figures)
 
 
+def _imu_rows(t: np.ndarray, dtheta: object, dv: object) -> np.ndarray | None:
+    """A read-only (N, 7) view of the rows (t, Δθ, Δv) that ``t``, ``dtheta`` and ``dv`` are the columns of (a log
+    reader's block), for the pipeline to read in place; None for any other layout (then copied)."""
+    owner = getattr(t, "base", None)
+    if (owner is None or owner is not getattr(dtheta, "base", None) or owner is not getattr(dv, "base", None)
+            or t.dtype != np.float64 or dtheta.dtype != np.float64 or dv.dtype != np.float64):
+        return None
+    n, row = len(t), IMU_WIDTH * t.itemsize
+    start = t.__array_interface__["data"][0]
+    if (t.strides != (row,) or dtheta.shape != (n, 3) or dv.shape != (n, 3) or dtheta.strides != (row, 8)
+            or dv.strides != (row, 8) or dtheta.__array_interface__["data"][0] != start + 8
+            or dv.__array_interface__["data"][0] != start + 32):
+        return None
+    return np.lib.stride_tricks.as_strided(t, (n, IMU_WIDTH), (row, 8), writeable=False)
+
+
 def _fold_to(solver: RecursiveK | CentredWahba, dK: np.ndarray, trace_R: np.ndarray, folded: int, upto: int) -> int:
     """Fold the prepared observations ``folded`` to ``upto`` (those taken up to a sample: ``np.searchsorted(due,
     sample, side="right")``); returns how many are folded."""
@@ -259,10 +275,12 @@ class AlignmentPipeline:
             return []
         # only a call that ends on a complete block defers: its tail then refers to no sample the next one writes over
         self._defer_control = defer_control and (self._n_pending + len(t)) % self.block_samples == 0
-        columns = [t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))]
-        if self.aid_width:
-            columns.append(np.reshape(aid, (-1, self._pending.shape[1] - AID_COLUMN)))
-        samples = np.column_stack(columns)
+        samples = None if self.aid_width else _imu_rows(t, dtheta, dv)
+        if samples is None:
+            columns = [t, np.reshape(dtheta, (-1, 3)), np.reshape(dv, (-1, 3))]
+            if self.aid_width:
+                columns.append(np.reshape(aid, (-1, self._pending.shape[1] - AID_COLUMN)))
+            samples = np.column_stack(columns)
         if self._epoch_count is None:
             self._epoch_count = int(self._epoch_counts(np.asarray([t[0] - self.sample_period_s]))[0])
             self._t_step = float(t[0]) - self.sample_period_s

@@ -25,15 +25,18 @@ include "_compass_core.pxi"
 
 import numpy as np
 
-DONE = 0
+cdef enum:   # where :meth:`FixedBaseBlocks.run` stopped (the names below)
+    STOP_DONE, STOP_VERDICT, STOP_CONTROL, STOP_MOTION
+
+DONE = STOP_DONE
 """Every block up to the limit run."""
-VERDICT = 1
+VERDICT = STOP_VERDICT
 """The block's observations folded and fed to the noise meter, whose verdict is due: the verdict and the block's
 control step are left (:meth:`FixedBaseBlocks.run` with ``resume`` takes the step)."""
-CONTROL = 2
+CONTROL = STOP_CONTROL
 """The block's observations folded and measured; its control step is the Python steps': the hand-over to the loops,
 or the step that fills their store (the passes start)."""
-MOTION = 3
+MOTION = STOP_MOTION
 """The block's control step taken but for the motion check, which needs the estimate's σ."""
 
 cdef enum:
@@ -290,104 +293,105 @@ cdef class FixedBaseBlocks:
         cdef double level_s, azimuth_s, t_end, elapsed_s, dt_s
         cdef const double* F
         cdef const double* a
-        cdef int stage = DONE
+        cdef int stage = STOP_DONE
         cdef Py_ssize_t stepped = -1   # the last sample whose control step was taken
         for i in range(64):
             Q[i] = 0.0
-        while c < limit:
-            # the block's observations: folded, then measured
-            upto = fold_end[c]
-            if resume and c == b:
-                pass
-            elif upto > folded:
-                _fold(K, &dK[folded, 0, 0], &trace_R[folded], upto - folded, &m, &trace_P, &n_obs, &rho,
-                      self.trace_Q, self.policy, self.fixed_rho)
-                folded = upto
-                q_known = False
-            if self.with_noise and folded > measured:
-                outliers += _hadamard_feed(self.lat, self.gravity, &observed_s[measured], &observed_alpha[measured, 0],
-                                           folded - measured, &alpha_sum[0, 0], &beta_sum[0, 0], alpha_sum.shape[0],
-                                           &last_sums[0, 0], &lags[0], lags.shape[0], &sums[0], &counts[0],
-                                           C_rough if with_rough else NULL, &steps, &bad_until, self.settle_steps,
-                                           self.outlier_factor, self.min_outlier_count, self.verdict_steps,
-                                           &verdict_due)
-            measured = folded
-            if verdict_due:
-                stage = VERDICT
-                break
-            if self.with_fine and ((active and stored == capacity - 1 and not passes_done) or
-                                   (not active and self._handover_due(elapsed[ends[c]], n_obs, handover_terms))):
-                stage = CONTROL   # the hand-over, or the step that fills the store (FineAlignment.feed starts passes)
-                break
-            # the control step: Δα and Δ since the last one
-            e = ends[c]
-            t_end, elapsed_s = t[e], elapsed[e]
-            for i in range(3):
-                dalpha[i] = alpha[e, i] - alpha_step[i]
-                alpha_step[i] = alpha[e, i]
-            dt_s = t_end - t_step
-            t_step = t_end
-            stepped = e
-            if self.with_fine:   # FineAlignment.feed: the store
-                if stored < capacity:
-                    for i in range(3):
-                        stored_dalpha[stored, i] = dalpha[i]
-                    stored_dt[stored] = dt_s
-                    stored += 1
-                    passes_done = passes_done or (not active and stored == capacity)   # the loops start too late
-            if active:   # CompassLoops.step: the schedule's gains, the azimuth switch, F, Q, the step
-                level_s = _geometric(self.knots, self.level_sigma, self.n_knots, t_loop_s)
-                azimuth_s = _geometric(self.knots, self.azimuth_sigma, self.n_knots, t_loop_s)
-                key[0] = 3.0 * level_s
-                key[1] = 4.0 * pow(level_s, 2.0) / ws2 - 1.0
-                key[2] = 2.0 * pow(level_s, 3.0) / self.loops_gravity
-                if azimuth_s > 0.0 and not azimuth_on:
-                    azimuth_on, I_N, y = True, 0.0, 0.0
-                if azimuth_on:
-                    key[3] = 1.0
-                    key[4] = 2.0 * azimuth_s
-                    key[5] = 4.0 * pow(azimuth_s, 2.0) / ws2 - 1.0
-                    key[6] = 2.0 * azimuth_s
-                    key[7] = 4.0 * pow(azimuth_s, 4.0) / self.loops_gravity
-                else:
-                    key[3] = key[4] = key[5] = key[6] = key[7] = 0.0
-                key[8], key[9] = earth_sign, dt_s
-                F = self._transition_of(key)
-                Q[0] = Q[9] = vrw2 * dt_s
-                Q[18] = Q[27] = Q[36] = arw2 * dt_s
-                _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, dalpha, dt_s, key[0], key[1], key[2], azimuth_on,
-                      key[4], key[5], key[6], key[7], earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin,
-                      self.radius_m, F, Q, &P[0, 0])
-                t_loop_s += dt_s
-            if self.with_motion and elapsed_s >= next_check_s:
-                next_check_s = elapsed_s + self.check_interval_s
-                if n_obs != 0:   # MotionMonitor.check, the base still: the entry stored, the window's velocity
-                    if not q_known:
-                        _top_quaternion(K, q)
-                        q_known = q_new = True
-                    _dcm(q[0], q[1], q[2], q[3], C)
-                    slot = ring_count % (self.ring_n + 1)
-                    oldest = (ring_count + 1) % (self.ring_n + 1)
-                    _beta_fixed(self.lat, self.gravity, elapsed_s, beta)
-                    a = &alpha_step[0]
-                    if ring_count + 1 > self.ring_n:
-                        _horizontal(self.lat, elapsed_s, &ring_C[oldest, 0, 0], a, beta, &ring_alpha[oldest, 0],
-                                    &ring_beta[oldest, 0], gained)
-                        speed = gained[0]
-                        if speed > SUSPECT_FRACTION * self.threshold:
-                            stage = MOTION   # the monitor's Python steps take the check from here
-                            break
-                    ring_elapsed[slot] = elapsed_s
-                    for i in range(3):
-                        ring_beta[slot, i] = beta[i]
-                        ring_alpha[slot, i] = a[i]
-                        for j in range(3):
-                            ring_C[slot, i, j] = C[3 * i + j]
-                    ring_count += 1
-                    if ring_count > self.ring_n:
-                        window_speed = speed
-                        checked = True
-            c += 1
+        with nogil:   # the reading thread of a replay parses meanwhile
+            while c < limit:
+                # the block's observations: folded, then measured
+                upto = fold_end[c]
+                if resume and c == b:
+                    pass
+                elif upto > folded:
+                    _fold(K, &dK[folded, 0, 0], &trace_R[folded], upto - folded, &m, &trace_P, &n_obs, &rho,
+                          self.trace_Q, self.policy, self.fixed_rho)
+                    folded = upto
+                    q_known = False
+                if self.with_noise and folded > measured:
+                    outliers += _hadamard_feed(self.lat, self.gravity, &observed_s[measured],
+                                               &observed_alpha[measured, 0], folded - measured, &alpha_sum[0, 0],
+                                               &beta_sum[0, 0], alpha_sum.shape[0], &last_sums[0, 0], &lags[0], lags.shape[0], &sums[0], &counts[0],
+                                               C_rough if with_rough else NULL, &steps, &bad_until, self.settle_steps,
+                                               self.outlier_factor, self.min_outlier_count, self.verdict_steps,
+                                               &verdict_due)
+                measured = folded
+                if verdict_due:
+                    stage = STOP_VERDICT
+                    break
+                if self.with_fine and ((active and stored == capacity - 1 and not passes_done) or
+                                       (not active and self._handover_due(elapsed[ends[c]], n_obs, handover_terms))):
+                    stage = STOP_CONTROL   # the hand-over, or the step that fills the store (the passes start)
+                    break
+                # the control step: Δα and Δ since the last one
+                e = ends[c]
+                t_end, elapsed_s = t[e], elapsed[e]
+                for i in range(3):
+                    dalpha[i] = alpha[e, i] - alpha_step[i]
+                    alpha_step[i] = alpha[e, i]
+                dt_s = t_end - t_step
+                t_step = t_end
+                stepped = e
+                if self.with_fine:   # FineAlignment.feed: the store
+                    if stored < capacity:
+                        for i in range(3):
+                            stored_dalpha[stored, i] = dalpha[i]
+                        stored_dt[stored] = dt_s
+                        stored += 1
+                        passes_done = passes_done or (not active and stored == capacity)   # the loops start too late
+                if active:   # CompassLoops.step: the schedule's gains, the azimuth switch, F, Q, the step
+                    level_s = _geometric(self.knots, self.level_sigma, self.n_knots, t_loop_s)
+                    azimuth_s = _geometric(self.knots, self.azimuth_sigma, self.n_knots, t_loop_s)
+                    key[0] = 3.0 * level_s
+                    key[1] = 4.0 * pow(level_s, 2.0) / ws2 - 1.0
+                    key[2] = 2.0 * pow(level_s, 3.0) / self.loops_gravity
+                    if azimuth_s > 0.0 and not azimuth_on:
+                        azimuth_on, I_N, y = True, 0.0, 0.0
+                    if azimuth_on:
+                        key[3] = 1.0
+                        key[4] = 2.0 * azimuth_s
+                        key[5] = 4.0 * pow(azimuth_s, 2.0) / ws2 - 1.0
+                        key[6] = 2.0 * azimuth_s
+                        key[7] = 4.0 * pow(azimuth_s, 4.0) / self.loops_gravity
+                    else:
+                        key[3] = key[4] = key[5] = key[6] = key[7] = 0.0
+                    key[8], key[9] = earth_sign, dt_s
+                    F = self._transition_of(key)
+                    Q[0] = Q[9] = vrw2 * dt_s
+                    Q[18] = Q[27] = Q[36] = arw2 * dt_s
+                    _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, dalpha, dt_s, key[0], key[1], key[2], azimuth_on,
+                          key[4], key[5], key[6], key[7], earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin,
+                          self.radius_m, F, Q, &P[0, 0])
+                    t_loop_s += dt_s
+                if self.with_motion and elapsed_s >= next_check_s:
+                    next_check_s = elapsed_s + self.check_interval_s
+                    if n_obs != 0:   # MotionMonitor.check, the base still: the entry stored, the window's velocity
+                        if not q_known:
+                            _top_quaternion(K, q)
+                            q_known = q_new = True
+                        _dcm(q[0], q[1], q[2], q[3], C)
+                        slot = ring_count % (self.ring_n + 1)
+                        oldest = (ring_count + 1) % (self.ring_n + 1)
+                        _beta_fixed(self.lat, self.gravity, elapsed_s, beta)
+                        a = &alpha_step[0]
+                        if ring_count + 1 > self.ring_n:
+                            _horizontal(self.lat, elapsed_s, &ring_C[oldest, 0, 0], a, beta, &ring_alpha[oldest, 0],
+                                        &ring_beta[oldest, 0], gained)
+                            speed = gained[0]
+                            if speed > SUSPECT_FRACTION * self.threshold:
+                                stage = STOP_MOTION   # the monitor's Python steps take the check from here
+                                break
+                        ring_elapsed[slot] = elapsed_s
+                        for i in range(3):
+                            ring_beta[slot, i] = beta[i]
+                            ring_alpha[slot, i] = a[i]
+                            for j in range(3):
+                                ring_C[slot, i, j] = C[3 * i + j]
+                        ring_count += 1
+                        if ring_count > self.ring_n:
+                            window_speed = speed
+                            checked = True
+                c += 1
         # the state back into its objects
         solver.K, solver.m, solver.trace_P, solver.n_obs, solver.rho = K_out, m, trace_P, n_obs, rho
         if not q_known:

@@ -43,8 +43,10 @@ cdef void _scan(double* P, Py_ssize_t n) noexcept nogil:
 
 
 cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, double* dv_prev,
-                     const double* dtheta, const double* dv, long n, long M, double* q, double* alpha) noexcept nogil:
-    """The chunk's n samples (n a multiple of M) into q (n, 4) and α (n, 3), the state arrays updated in place.
+                     const double* dtheta, const double* dv, long row, long n, long M, double* q,
+                     double* alpha) noexcept nogil:
+    """The chunk's n samples (n a multiple of M; Δθ and Δv ``row`` doubles from one sample to the next) into q (n, 4)
+    and α (n, 3), the state arrays updated in place.
     Block by block: the block's rotations and body-frame Δv, their prefix product chained to the block's start, then
     Δv rotated by the attitude at each sample's start and summed from the block's start."""
     cdef long block, start, k, i
@@ -68,9 +70,9 @@ cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, doub
             first[i] = q_b_b0[i]
         P = q + 4 * start
         for k in range(start, start + M):
-            th, v = dtheta + 3 * k, dv + 3 * k
-            th_prev = dtheta + 3 * (k - 1) if k > 0 else dtheta_prev
-            v_prev = dv + 3 * (k - 1) if k > 0 else dv_prev
+            th, v = dtheta + row * k, dv + row * k
+            th_prev = dtheta + row * (k - 1) if k > 0 else dtheta_prev
+            v_prev = dv + row * (k - 1) if k > 0 else dv_prev
             _cross(th_prev, th, cr)
             for i in range(3):
                 phi[i] = th[i] + cr[i] / 12.0
@@ -105,24 +107,30 @@ cdef void _integrate(double* q_b_b0, double* alpha_b0, double* dtheta_prev, doub
         for i in range(3):
             alpha_b0[i] = alpha[3 * (start + M - 1) + i]
     for i in range(3):
-        dtheta_prev[i] = dtheta[3 * (n - 1) + i]
-        dv_prev[i] = dv[3 * (n - 1) + i]
+        dtheta_prev[i] = dtheta[row * (n - 1) + i]
+        dv_prev[i] = dv[row * (n - 1) + i]
 
 
 def integrate(double[::1] q_b_b0, double[::1] alpha_b0, double[::1] dtheta_prev, double[::1] dv_prev,
-              const double[:, ::1] dtheta, const double[:, ::1] dv, long block_samples):
-    """N samples (Δθ, Δv (N, 3), N a multiple of ``block_samples``) from the state (C_b^b0 (4,), α (3,), the
+              const double[:, :] dtheta, const double[:, :] dv, long block_samples):
+    """N samples (Δθ, Δv (N, 3), N a multiple of ``block_samples``; each row contiguous, the rows of both one stride
+    apart: columns of the pipeline's sample rows, or arrays of their own) from the state (C_b^b0 (4,), α (3,), the
     previous Δθ and Δv (3,)), which is updated in place; returns C_b^b0 (N, 4) and α (N, 3) at the samples' ends."""
     cdef long n = dtheta.shape[0]
     if dv.shape[0] != n or dtheta.shape[1] != 3 or dv.shape[1] != 3 or n == 0 or block_samples < 1 \
             or n % block_samples:
         raise ValueError(f"{n} samples (3 columns each) are not whole blocks of {block_samples}")
+    if dtheta.strides[1] != sizeof(double) or dv.strides[1] != sizeof(double) or dtheta.strides[0] != dv.strides[0] \
+            or dtheta.strides[0] % sizeof(double):
+        raise ValueError("integrate: Δθ and Δv rows contiguous, one stride apart")
     q_out = np.empty((n, 4))
     alpha_out = np.empty((n, 3))
     cdef double[:, ::1] q = q_out
     cdef double[:, ::1] alpha = alpha_out
-    _integrate(&q_b_b0[0], &alpha_b0[0], &dtheta_prev[0], &dv_prev[0], &dtheta[0, 0], &dv[0, 0], n, block_samples,
-               &q[0, 0], &alpha[0, 0])
+    cdef long row = dtheta.strides[0] // sizeof(double)
+    with nogil:
+        _integrate(&q_b_b0[0], &alpha_b0[0], &dtheta_prev[0], &dv_prev[0], &dtheta[0, 0], &dv[0, 0], row, n,
+                   block_samples, &q[0, 0], &alpha[0, 0])
     return q_out, alpha_out
 
 

@@ -120,25 +120,26 @@ class _SigmaTerms:
 
 def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
     """The terms of a grade and site: the two last asked for kept by identity (a record asks for the datasheet's and
-    the measured grade's, and hashing a grade costs more than the arithmetic it saves), others from a cache."""
+    the measured grade's, and the measured one changes at every noise verdict), the site's part cached."""
     global _recent_terms
     for recent in _recent_terms:
         if grade is recent[0] and lat == recent[1] and gravity == recent[2]:
             return recent[3]
-    terms = _cached_sigma_terms(grade, lat, gravity)
+    bias, w_cos, cos_lat = _bias_terms(grade.acc_bias_ms2, grade.gyro_bias_rad_s, lat, gravity)
+    terms = _SigmaTerms(bias, (bias[0] ** 2, bias[1] ** 2), 12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2,
+                        1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2,
+                        320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * cos_lat) ** 2,
+                        4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
     _recent_terms = ((grade, lat, gravity, terms), _recent_terms[0])
     return terms
 
 
 @functools.lru_cache(maxsize=64)
-def _cached_sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
-    heading = np.hypot(np.tan(lat) * grade.acc_bias_ms2 / gravity, grade.gyro_bias_rad_s / (OMEGA_IE * np.cos(lat)))
-    bias = (float(heading), grade.acc_bias_ms2 / gravity)
-    w_cos = OMEGA_IE * np.cos(lat)
-    return _SigmaTerms(bias, (bias[0] ** 2, bias[1] ** 2), 12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2,
-                       1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2,
-                       320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * np.cos(lat)) ** 2,
-                       4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
+def _bias_terms(acc_bias_ms2: float, gyro_bias_rad_s: float, lat: float,
+                gravity: float) -> tuple[tuple[float, float], float, float]:
+    """The bias limit (heading, level) in rad of these biases at this site, Ω cos L and cos L."""
+    heading = np.hypot(np.tan(lat) * acc_bias_ms2 / gravity, gyro_bias_rad_s / (OMEGA_IE * np.cos(lat)))
+    return (float(heading), acc_bias_ms2 / gravity), OMEGA_IE * np.cos(lat), np.cos(lat)
 
 
 _recent_terms: tuple = ((None, np.nan, np.nan, None),) * 2

@@ -79,8 +79,18 @@ class InertialIntegrator:
              ) -> tuple[tuple[np.ndarray, ...], np.ndarray, np.ndarray]:
         """(the state after the samples, C_b^b0 (N, 4), α (N, 3)), the state's own arrays untouched: new ones are
         written, so a shallow copy of the integrator (the pipeline's scratch) runs ahead on its own."""
-        dtheta = np.ascontiguousarray(dtheta, dtype=float).reshape(-1, 3)
-        dv = np.ascontiguousarray(dv, dtype=float).reshape(-1, 3)
+        dtheta, dv = _rows(dtheta, dv)
         state = (self.q_b_b0.copy(), self.alpha_b0.copy(), self._dtheta_prev.copy(), self._dv_prev.copy())
         q, alpha = integrate_blocks(*state, dtheta, dv, block_samples or len(dtheta))
         return state, q, alpha
+
+
+def _rows(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Δθ and Δv (N, 3) as the compiled integration reads them: as they are when each row is contiguous and both step
+    by one stride (the pipeline's sample rows: no copy), else contiguous copies."""
+    dtheta, dv = np.reshape(np.asarray(dtheta, dtype=float), (-1, 3)), np.reshape(np.asarray(dv, dtype=float), (-1, 3))
+    if (dtheta.strides[1] == dv.strides[1] == dtheta.itemsize and dtheta.strides[0] == dv.strides[0]
+            and dtheta.strides[0] % dtheta.itemsize == 0):
+        return dtheta, dv
+    return np.ascontiguousarray(dtheta), np.ascontiguousarray(dv)
+

@@ -4,6 +4,7 @@ chunks of any size, with the loops or without, motion episodes and restarts, noi
 another solver, no stored-data passes), and it takes most blocks (else the comparison would prove nothing)."""
 from __future__ import annotations
 
+import numpy as np
 import pytest
 import sinsalign.service.pipeline as pipeline_module
 from sinsalign.service.config import config_from_mapping
@@ -74,3 +75,20 @@ def test_the_compiled_loop_gives_the_python_steps_records(monkeypatch: pytest.Mo
         assert a == b
     blocks = seconds / 0.1
     assert completed >= share * blocks, f"the compiled loop took {completed} of {blocks:g} blocks"
+
+
+def test_a_reader_s_rows_are_read_in_place_with_the_same_records():
+    """t, Δθ and Δv as the columns of one (N, 7) block (a log reader's) are read in place, never written: the same
+    records as from arrays of their own."""
+    scenario = get_scenario("seed001-swing")
+    chunks = list(simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, 60.0, 1))
+    blocks = [np.column_stack((c.t, c.dtheta, c.dv)) for c in chunks]
+    kept = [block.copy() for block in blocks]
+    records = []
+    for columns in (lambda b: (b[:, 0], b[:, 1:4], b[:, 4:7]), lambda b: (b[:, 0].copy(), b[:, 1:4].copy(),
+                                                                           b[:, 4:7].copy())):
+        p = AlignmentPipeline(config_from_mapping({}), scenario.site, scenario.rate_hz, scenario.grade.datasheet())
+        records.append([r for block in blocks for k in range(0, len(block), 777)
+                        for r in p.process(*columns(block[k:k + 777]))])
+    assert records[0] == records[1] and len(records[0]) == 60
+    assert all(np.array_equal(a, b) for a, b in zip(blocks, kept, strict=True))

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from sinsalign.protocol._rows import parse_rows
+from sinsalign.protocol._rows import newlines, parse_rows, rows_within
+from sinsalign.protocol.imu_log import Range, RowLimits, first_not_increasing
 
 NCOLS = 3
 finite = st.floats(allow_nan=False, allow_infinity=False)
@@ -90,3 +91,28 @@ def test_a_line_longer_than_the_bound_is_refused():
     assert parse_rows(row * 3, 11, len(row)) is not None
     assert parse_rows(row + " " * len(row) + "\n" + row, 11, len(row)) is None
     assert parse_rows("#" + "x" * len(row) + "\n", 11, len(row)) is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.text(alphabet=st.sampled_from("0123456789.,-e\n# xé"), max_size=300))
+def test_newlines_are_counted_as_str_counts_them(text):
+    assert newlines(text) == text.count("\n")
+
+
+RANGES = [Range(-1e4, 1e4), Range(-1.0, 1.0, open_low=True), Range(0.0, 2.0, open_high=True)]
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.lists(st.lists(st.sampled_from([-1e5, -1.0, -0.5, 0.0, 0.5, 1.0, 2.0, 3.0, 1e5]), min_size=3, max_size=3),
+                min_size=0, max_size=6),
+       st.booleans(), st.sampled_from([-np.inf, -1.0, 0.5]))
+def test_the_compiled_range_check_is_the_numpy_one(rows, increasing, t_last):
+    block = np.array(rows, dtype=float).reshape(-1, 3)
+    columns = ("t", "a", "b")
+    limits = RowLimits(dict(zip(columns, RANGES, strict=True)))
+    want = limits.problem(block, columns) is None and (
+        not increasing or first_not_increasing(block[:, 0], t_last) is None)
+    low, high = np.array([r.low for r in RANGES]), np.array([r.high for r in RANGES])
+    open_low = np.array([r.open_low for r in RANGES], dtype=np.uint8)
+    open_high = np.array([r.open_high for r in RANGES], dtype=np.uint8)
+    assert rows_within(block, low, high, open_low, open_high, increasing, t_last) == want

@@ -95,6 +95,24 @@ def test_the_compiled_integration_is_the_numpy_block_form_to_the_bit(M):
         assert not np.array_equal(before.q_b_b0, ahead.q_b_b0) or scale < 1e-8
 
 
+@pytest.mark.parametrize("layout", ["rows", "reversed", "fortran", "apart"])
+def test_the_integration_reads_the_pipeline_s_sample_rows_as_contiguous_arrays(layout):
+    """Δθ and Δv as columns of the pipeline's sample rows (t, Δθ, Δv) are read in place; any other layout is
+    copied first: the same bits either way."""
+    rng = np.random.default_rng(5)
+    rows = np.column_stack((np.arange(40.0), 1e-3 * rng.standard_normal((40, 3)), rng.standard_normal((40, 3))))
+    if layout == "reversed":
+        rows = rows[::-1]
+    elif layout == "fortran":
+        rows = np.asfortranarray(rows)
+    dtheta, dv = rows[:, 1:4], rows[:, 4:7]
+    if layout == "apart":   # rows of another stride
+        dv = np.ascontiguousarray(dv)
+    q, alpha = InertialIntegrator().integrate(dtheta, dv, 20)
+    q_ref, alpha_ref = InertialIntegrator().integrate(np.ascontiguousarray(dtheta), np.ascontiguousarray(dv), 20)
+    assert np.array_equal(q, q_ref) and np.array_equal(alpha, alpha_ref)
+
+
 def test_a_chunk_that_is_not_whole_blocks_is_refused():
     with pytest.raises(ValueError, match="not whole blocks of 20"):
         InertialIntegrator().integrate(np.zeros((30, 3)), np.zeros((30, 3)), 20)
