@@ -12,9 +12,7 @@ lever arm) has the range the log's reader holds it to (protocol/imu_log.py, prot
 """
 from __future__ import annotations
 
-import difflib
 import math
-import tomllib
 from collections.abc import Collection, Iterator, Sequence
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
@@ -585,6 +583,8 @@ def _unknown(name: object, where: str, known: Sequence[str]) -> ConfigError:
     if moved is not None:
         return ConfigError(f"{where}{text}: unknown key; it is {moved} (each mode's keys live in its own table: "
                            f"[{moved.rsplit('.', 1)[0]}] {moved.rsplit('.', 1)[1]} = …)")
+    import difflib  # here: only a mistyped key needs it (the replay path imports no more than it runs)
+
     listing = ", ".join(known)
     close = difflib.get_close_matches(str(name)[:100], known, n=3)
     hint = (f"known: {listing}" if len(listing) <= 120 else f"did you mean {' or '.join(close)}?" if close
@@ -662,6 +662,8 @@ def _read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(f"{path}: cannot read: {exc.strerror}") from exc
     if len(raw) > MAX_FILE_BYTES:
         raise ConfigError(f"{path}: larger than {MAX_FILE_BYTES} bytes: not a configuration file")
+    import tomllib  # here: a run without a configuration file does not import the parser
+
     try:
         return tomllib.loads(raw.decode("utf-8"))
     except RecursionError:

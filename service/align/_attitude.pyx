@@ -15,10 +15,12 @@ product may take BLAS's order): they differ from them by a unit or two of the la
 
 Quaternions are Hamilton [w, x, y, z] with w ≥ 0, as conventions.quat_normalize gives them.
 """
-from libc.math cimport M_PI, asin, atan2, cos, fabs, fmod, sin, sqrt
+from libc.math cimport M_PI, asin, atan2, cos, fabs, fmod, pow, sin, sqrt
 
 include "_linalg.pxi"
 include "_quaternion.pxi"
+include "_fixed_site.pxi"
+include "_platform.pxi"
 
 import numpy as np
 
@@ -100,9 +102,8 @@ def chained_quaternion(const double[:, :] C_n_n0, const double[::1] q_b_n0, cons
     return out
 
 
-def record_angles(const double[::1] q):
-    """A record's attitude of C_b^n = C(q) (q [w, x, y, z], near unit): (q normalised as a 4-tuple, heading in
-    [0, 360), pitch, roll), degrees; conventions.euler_from_dcm of conventions.dcm_from_quat, as records.py takes it."""
+cdef tuple _angles(const double* q):
+    """(q normalised as a 4-tuple, heading in [0, 360), pitch, roll), degrees, of C_b^n = C(q)."""
     cdef double C[9]
     cdef double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
     _dcm(q[0], q[1], q[2], q[3], C)
@@ -113,6 +114,14 @@ def record_angles(const double[::1] q):
     cdef double c21 = 1.0 if C[7] > 1.0 else -1.0 if C[7] < -1.0 else C[7]
     return ((q[0] / norm, q[1] / norm, q[2] / norm, q[3] / norm),
             heading_deg if heading_deg < 360.0 else 0.0, asin(c21) / DEG, atan2(-C[6], C[8]) / DEG)
+
+
+def record_angles(const double[::1] q):
+    """A record's attitude of C_b^n = C(q) (q [w, x, y, z], near unit): (q normalised as a 4-tuple, heading in
+    [0, 360), pitch, roll), degrees; conventions.euler_from_dcm of conventions.dcm_from_quat, as records.py takes it."""
+    cdef double p[4]
+    p[0], p[1], p[2], p[3] = q[0], q[1], q[2], q[3]
+    return _angles(p)
 
 
 cdef void _with_heading_of(const double* C_level, const double* C_heading, double* out) noexcept nogil:
@@ -153,31 +162,48 @@ def with_heading_of_one(const double[:, :] C_level, const double[:, :] C_heading
     return out
 
 
-def output_quaternion(const double[::1] q_coarse, double coarse_heading_sigma_deg, double coarse_level_sigma_deg,
-                      const double[:, :] C_fine, double fine_heading_sigma_deg, double fine_level_sigma_deg):
-    """The output rule's attitude (records.smaller_sigma_solution): the level of whichever of the coarse attitude
-    (``q_coarse``) and the fine one (``C_fine``) claims the smaller level σ, the heading of whichever claims the
-    smaller heading σ, as a quaternion [w, x, y, z] (w ≥ 0); None where the coarse one claims neither."""
-    cdef double C[9]
-    cdef double F[9]
+def fine_record_angles(double lat, double elapsed_s, const double[::1] q_b_n0, const double[::1] q_b_b0,
+                       double coarse_heading_sigma_deg, double coarse_level_sigma_deg, double fine_heading_sigma_deg,
+                       double fine_level_sigma_deg, const double[:, ::1] C_b0_p, const double[::1] V, double I_E,
+                       double I_N, double y, bint azimuth_on, double K2L, double K2A, double earth_sign,
+                       const double[::1] omega_ie_n, double radius_m, double since_step_s):
+    """A fixed-base record's attitude once the compass loops run (:func:`record_angles` of it): the coarse attitude at
+    ``elapsed_s`` (C_{n0}^{n} of the fixed site, C(q_b_n0) C(q_b_b0): coarse.solution_at), the loops' (C_{b0}^{p} turned
+    on for ``since_step_s`` at the commanded rate, times C(q_b_b0): CompassLoops.attitude), and the output rule
+    (records.py): the level of whichever claims the smaller level σ, the heading of whichever claims the smaller
+    heading σ (conventions.with_heading_of), through Shepperd's quaternion."""
+    cdef double T[9]
+    cdef double A[9]
+    cdef double B[9]
+    cdef double P[9]
     cdef double M[9]
-    cdef bint level_fine = fine_level_sigma_deg < coarse_level_sigma_deg
-    cdef bint heading_fine = fine_heading_sigma_deg < coarse_heading_sigma_deg
+    cdef double F[9]
+    cdef double C[9]
+    cdef double q[4]
     cdef const double* level
     cdef const double* heading
+    cdef bint level_fine = fine_level_sigma_deg < coarse_level_sigma_deg
+    cdef bint heading_fine = fine_heading_sigma_deg < coarse_heading_sigma_deg
     cdef int i, j
-    if not level_fine and not heading_fine:
-        return None
-    _dcm(q_coarse[0], q_coarse[1], q_coarse[2], q_coarse[3], C)
+    _C_n_n0_fixed(lat, elapsed_s, M)
     for i in range(3):
         for j in range(3):
-            F[3 * i + j] = C_fine[i, j]
-    out = np.empty(4)
-    cdef double[::1] o = out
-    if level_fine == heading_fine:
-        _shepperd(F, &o[0])
-    else:
-        level, heading = (&F[0] if level_fine else &C[0]), (&F[0] if heading_fine else &C[0])
-        _with_heading_of(level, heading, M)
-        _shepperd(M, &o[0])
-    return out
+            T[3 * i + j] = M[3 * j + i]
+    _dcm(q_b_n0[0], q_b_n0[1], q_b_n0[2], q_b_n0[3], A)
+    _dcm(q_b_b0[0], q_b_b0[1], q_b_b0[2], q_b_b0[3], B)
+    _matmul3(T, A, P)
+    _matmul3(P, B, M)
+    _shepperd(M, q)   # the coarse attitude, as its solution holds it
+    if level_fine or heading_fine:
+        for i in range(9):
+            C[i] = C_b0_p[i // 3, i % 3]
+        _platform_attitude(C, &V[0], I_E, I_N, y, azimuth_on, K2L, K2A, earth_sign, &omega_ie_n[0], radius_m,
+                           since_step_s, B, F)
+        if level_fine == heading_fine:
+            _shepperd(F, q)
+        else:
+            _dcm(q[0], q[1], q[2], q[3], C)
+            level, heading = (&F[0] if level_fine else &C[0]), (&F[0] if heading_fine else &C[0])
+            _with_heading_of(level, heading, M)
+            _shepperd(M, q)
+    return _angles(q)

@@ -21,6 +21,7 @@ include "_quaternion.pxi"
 include "_fixed_site.pxi"
 include "_noise_feed.pxi"
 include "_fold.pxi"
+include "_platform.pxi"
 include "_compass_core.pxi"
 
 import numpy as np

@@ -19,6 +19,7 @@ from libc.math cimport ceil, cos, fabs, log2, pow, sin, sqrt
 import numpy as np
 
 
+include "_platform.pxi"
 include "_compass_core.pxi"
 
 
@@ -38,29 +39,13 @@ def platform_attitude(const double[:, ::1] C_b0_p, const double[::1] V, double I
                       bint azimuth_on, double K2L, double K2A, double earth_sign, const double[::1] omega_ie_n,
                       double radius_m, double since_step_s, const double[:, ::1] C_b_b0):
     """C_b^n (3, 3) = exp(−[ω_p t ×]) C_{b0}^{p} C_{b}^{b0}: the loops' attitude ``since_step_s`` (t) after their last
-    step, the platform turned on at the rate the state commands, ω_p = s ω_ie^n + ω_c (CompassLoops.platform_rate;
-    the azimuth gain K2A read only with ``azimuth_on``). The products add their terms in index order where numpy's
-    BLAS may not, and sin and cos are the C library's: within a few units of the last place of the numpy form."""
-    cdef double V_E = V[0], V_N = V[1], omega_E
-    cdef double R[9]
-    cdef double RC[9]
-    cdef double C[9]
-    cdef double B[9]
-    cdef int i, j
-    if azimuth_on:
-        omega_E = -(1.0 + K2A) * V_N / radius_m
-    else:
-        omega_E = -(1.0 + K2L) * V_N / radius_m - I_N
-    _rotation(-since_step_s * (earth_sign * omega_ie_n[0] + omega_E),
-              -since_step_s * (earth_sign * omega_ie_n[1] + ((1.0 + K2L) * V_E / radius_m + I_E)),
-              -since_step_s * (earth_sign * omega_ie_n[2] + y), R)
-    for i in range(3):
-        for j in range(3):
-            C[3 * i + j], B[3 * i + j] = C_b0_p[i, j], C_b_b0[i, j]
-    _mat3_mul(R, C, RC)
+    step, the platform turned on at the rate the state commands, ω_p = s ω_ie^n + ω_c (CompassLoops.attitude; the
+    azimuth gain K2A read only with ``azimuth_on``). The products add their terms in index order where numpy's BLAS
+    may not, and sin and cos are the C library's: within a few units of the last place of the numpy form."""
     out = np.empty((3, 3))
     cdef double[:, ::1] o = out
-    _mat3_mul(RC, B, &o[0, 0])
+    _platform_attitude(&C_b0_p[0, 0], &V[0], I_E, I_N, y, azimuth_on, K2L, K2A, earth_sign, &omega_ie_n[0],
+                       radius_m, since_step_s, &C_b_b0[0, 0], &o[0, 0])
     return out
 
 

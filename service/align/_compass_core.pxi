@@ -1,40 +1,6 @@
-# The compass loops' arithmetic shared by the compiled kernels: included (include "_compass_core.pxi") into each
-# module that uses it. _compass.pyx's docstring describes it; the including module cimports ceil, cos, fabs, log2,
-# pow, sin and sqrt from libc.math. Matrices row-major: C_{b0}^{p} 9, F, Q and P 64.
-
-
-cdef void _rotation(double x, double y, double z, double* R) noexcept nogil:
-    """exp([φ×]) row-major into R[9] for φ = (x, y, z): compass.rotation_matrix."""
-    cdef double angle = sqrt(x * x + y * y + z * z)
-    cdef double S[9]
-    cdef double SS[9]
-    cdef double a, b
-    cdef int i, j
-    S[0] = 0.0
-    S[1] = -z
-    S[2] = y
-    S[3] = z
-    S[4] = 0.0
-    S[5] = -x
-    S[6] = -y
-    S[7] = x
-    S[8] = 0.0
-    for i in range(3):
-        for j in range(3):
-            SS[3 * i + j] = S[3 * i] * S[j] + S[3 * i + 1] * S[3 + j] + S[3 * i + 2] * S[6 + j]
-    if angle < 1e-8:
-        a, b = 1.0, 0.5
-    else:
-        a, b = sin(angle) / angle, (1.0 - cos(angle)) / pow(angle, 2.0)
-    for i in range(9):
-        R[i] = (1.0 if i % 4 == 0 else 0.0) + a * S[i] + b * SS[i]
-
-
-cdef inline void _mat3_mul(const double* A, const double* B, double* out) noexcept nogil:
-    cdef int i, j
-    for i in range(3):
-        for j in range(3):
-            out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
+# The compass loops' arithmetic shared by the compiled kernels: included (include "_compass_core.pxi") after
+# _platform.pxi into each module that uses it. _compass.pyx's docstring describes it; the including module cimports
+# ceil, cos, fabs, log2, pow, sin and sqrt from libc.math. Matrices row-major: C_{b0}^{p} 9, F, Q and P 64.
 
 
 cdef inline void _mat8_mul(const double* A, const double* B, double* out) noexcept nogil:

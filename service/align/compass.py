@@ -44,6 +44,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._attitude import fine_record_angles
 from ._compass import compass_step, compass_steps, platform_attitude, transition
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
@@ -193,6 +194,19 @@ class CompassLoops:
     def _gains_from(self, level_sigma: float, azimuth_sigma: float) -> tuple[tuple, tuple | None]:
         level = level_gains(level_sigma, self.gravity, self.radius_m)
         return level, azimuth_gains(azimuth_sigma, self.gravity, self.radius_m) if azimuth_sigma > 0.0 else None
+
+    def record_angles(self, state: CompassState, lat: float, elapsed_s: float, q_b_n0: np.ndarray, q_b_b0: np.ndarray,
+                      coarse_sigma_deg: tuple[float, float], fine_sigma_deg: tuple[float, float],
+                      since_step_s: float) -> tuple:
+        """A fixed-base record's attitude beside the coarse stage's (q_b_n0 and its (heading, level) σ, ``elapsed_s``
+        into the alignment at latitude ``lat``): :func:`~service.align._attitude.fine_record_angles` with this state
+        ``since_step_s`` after its last step."""
+        level, azimuth = self._gains(state)
+        on = state.azimuth_on and azimuth is not None
+        return fine_record_angles(lat, elapsed_s, q_b_n0, np.ascontiguousarray(q_b_b0, dtype=float), *coarse_sigma_deg,
+                                  *fine_sigma_deg, state.C_b0_p, state.V, state.I_E, state.I_N, state.y, on, level[1],
+                                  azimuth[1] if on else 0.0, state.earth_sign, self.omega_ie_n, self.radius_m,
+                                  since_step_s)
 
     def attitude(self, state: CompassState, C_b_b0: np.ndarray, since_step_s: float) -> np.ndarray:
         """C_b^n (3, 3) of the body attitude C_{b}^{b0} (3, 3), ``since_step_s`` after the state's last step: the

@@ -78,6 +78,15 @@ class FineAlignment:
         turned on at the rate the state commands."""
         return self.loops.attitude(self.state, C_b_b0, since_step_s)
 
+    def record_angles(self, lat: float, elapsed_s: float, q_b_n0: np.ndarray, q_b_b0: np.ndarray,
+                      coarse_sigma_deg: tuple[float, float], since_step_s: float) -> tuple[tuple, tuple]:
+        """(the record's angles as ``_attitude.record_angles`` gives them, the loops' (heading, level) σ in degrees)
+        of the output rule beside the coarse stage: :meth:`CompassLoops.record_angles`."""
+        sigma = self.sigma
+        fine_sigma_deg = (sigma.heading_deg, sigma.level_deg)
+        return self.loops.record_angles(self.state, lat, elapsed_s, q_b_n0, q_b_b0, coarse_sigma_deg, fine_sigma_deg,
+                                        since_step_s), fine_sigma_deg
+
     @property
     def sigma(self) -> AttitudeSigma:
         return self.loops.sigma(self.state)

@@ -21,7 +21,7 @@ from ..align.observations import FixedSiteSource
 from ..align.sensor_model import ESTIMATOR_EFFICIENCY, _sigma_terms, bias_limit_rad
 from ..align.solvers import make_solver
 from ..align.swing_bias import SwingBias
-from ..records import coarse_record, result_record, smaller_sigma_solution
+from ..records import coarse_record, record_of, result_record
 
 if TYPE_CHECKING:
     from ..pipeline import AlignmentPipeline
@@ -125,22 +125,35 @@ class FixedBase:
 
     def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                coarse: InertialCoarseAlignment) -> ResultRecord:
-        """The record of an output epoch: the coarse solution alone until the loops run, then the output rule."""
+        """The record of an output epoch: the coarse solution alone until the loops run, then the output rule: the
+        level of whichever of the two claims the smaller level σ, the heading of whichever claims the smaller heading
+        σ, each with its σ. So the fine stage never makes either worse than the coarse stage alone would give (a
+        600-s least-squares heading can beat a narrow loop, while the loops hold the level that the inertial-frame
+        fit lets drift by ε·T); the attitudes and the rule are compiled (``_attitude.fine_record_angles``)."""
         p = self.p
         threshold = p.config.alignment.converged_heading_sigma_deg
         if p.fine is None or not p.fine.active:
             return coarse_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, threshold, p.fine is not None)
-        sigma = p.fine.sigma
-        solution = coarse.solution_at(t_sample, q_b_b0)
-        C_fine = p.fine.attitude(dcm_from_quat(q_b_b0), t_sample - p.t_step)
         if p.initial_C_b_n is not None:
             # a compass-alone start from a given attitude (evaluation) is the loops' alone
+            sigma = p.fine.sigma
+            C_fine = p.fine.attitude(dcm_from_quat(q_b_b0), t_sample - p.t_step)
             solution = AttitudeSolution(t_sample, quat_from_dcm(C_fine), sigma.heading_deg, sigma.level_deg,
                                         coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
-        else:
-            solution = smaller_sigma_solution(solution, C_fine, sigma.heading_deg, sigma.level_deg)
-        aligned = p.fine.schedule_complete and solution.heading_sigma_deg <= threshold
-        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)
+            return result_record(solution, t_epoch, self._fine_phase(solution.heading_sigma_deg, threshold),
+                                 threshold)
+        elapsed = t_sample - coarse.t0
+        coarse_sigma = coarse.sigma(elapsed)
+        angles, fine_sigma = p.fine.record_angles(coarse.source.site.lat, elapsed, coarse.q_b_n0, q_b_b0,
+                                                  coarse_sigma, t_sample - p.t_step)
+        heading_sigma, level_sigma = min(fine_sigma[0], coarse_sigma[0]), min(fine_sigma[1], coarse_sigma[1])
+        solver = coarse.solver
+        return record_of(angles, t_epoch, self._fine_phase(heading_sigma, threshold), heading_sigma, level_sigma,
+                         threshold, solver.rho, solver.trace_P, solver.n_obs)
+
+    def _fine_phase(self, heading_sigma_deg: float, threshold_deg: float) -> str:
+        """``aligned`` once the loops' schedule is complete and the heading σ within the threshold, else ``fine``."""
+        return "aligned" if self.p.fine.schedule_complete and heading_sigma_deg <= threshold_deg else "fine"
 
 
 MODE = FixedBase

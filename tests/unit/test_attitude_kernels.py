@@ -18,11 +18,12 @@ import pytest
 from sinsalign.service.align._attitude import (
     chained_quaternion,
     dcm_from_quat_one,
-    output_quaternion,
+    fine_record_angles,
     quaternion_from_K,
     record_angles,
     with_heading_of_one,
 )
+from sinsalign.service.align._compass import platform_attitude
 from sinsalign.service.align.conventions import (
     DEG,
     dcm_from_euler,
@@ -127,17 +128,26 @@ def test_the_chained_coarse_attitude_and_the_heading_turn_are_the_numpy_forms_to
         assert abs(turned[2] - C_level[2]).max() == 0.0   # a turn about Up: the tilt of the first, as it was
 
 
-def test_the_output_rule_takes_level_and_heading_from_the_smaller_sigmas():
+def test_a_fine_record_is_the_output_rule_of_the_coarse_and_the_loops_attitudes():
     rng = np.random.default_rng(9)
-    qs = random_quaternions(500, rng)
-    for q_coarse, q_fine in zip(qs, rng.permutation(qs), strict=True):
-        C_coarse, C_fine = dcm_from_quat(q_coarse), dcm_from_quat(q_fine)
+    qs = random_quaternions(400, rng)
+    omega_ie_n = np.array([0.0, 5e-5, 5e-5])
+    for q_b_n0, q_b_b0, q_p in zip(qs, rng.permutation(qs), rng.permutation(qs), strict=True):
+        elapsed, since = rng.uniform(0.0, 3600.0), rng.uniform(0.0, 0.1)
         coarse_sigmas, fine_sigmas = rng.uniform(0.01, 1.0, 2), rng.uniform(0.01, 1.0, 2)
+        V, rates, gains = rng.normal(0.0, 1e-3, 2), rng.normal(0.0, 1e-5, 3), rng.uniform(-1.0, 3.0, 2)
+        on = bool(rng.integers(2))
+        C_b0_p = dcm_from_quat(q_p)
+        angles = fine_record_angles(0.6, elapsed, q_b_n0, q_b_b0, *coarse_sigmas, *fine_sigmas, C_b0_p, V, *rates, on,
+                                    *gains, 1.0, omega_ie_n, 6.4e6, since)
+        # the pieces one at a time: coarse.solution_at, CompassLoops.attitude and the output rule
+        C_coarse = dcm_from_quat(chained_quaternion(C_n_n0_fixed(0.6, elapsed), q_b_n0, q_b_b0))
+        C_fine = platform_attitude(C_b0_p, V, *rates, on, *gains, 1.0, omega_ie_n, 6.4e6, since, dcm_from_quat(q_b_b0))
         level_fine, heading_fine = fine_sigmas[1] < coarse_sigmas[1], fine_sigmas[0] < coarse_sigmas[0]
-        q = output_quaternion(q_coarse, *coarse_sigmas, C_fine, *fine_sigmas)
-        if not level_fine and not heading_fine:
-            assert q is None
-            continue
         C_level = C_fine if level_fine else C_coarse
         want = C_level if level_fine == heading_fine else with_heading_of(C_level, C_fine if heading_fine else C_coarse)
-        assert np.array_equal(q, quat_from_dcm(want))   # the numpy forms' bits
+        if not level_fine and not heading_fine:
+            want = C_coarse
+        q_want = quat_from_dcm(want) if (level_fine or heading_fine) else chained_quaternion(
+            C_n_n0_fixed(0.6, elapsed), q_b_n0, q_b_b0)
+        assert angles == record_angles(q_want)   # the same bits
