@@ -27,7 +27,8 @@ are left out. Memory is O(1).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -138,9 +139,10 @@ class NoiseMeter:
         q = f.q + SIGNIFICANCE * f.q_se
         n2 = max(stated.gyro_arw_rad_rts**2, f.n2 if f.n2 > SIGNIFICANCE * f.n2_se else 0.0)
         bounded = f.s + SIGNIFICANCE * f.s_se
-        grade = replace(stated, acc_vrw_ms_rts=max(float(np.sqrt(q)), SMALLEST_FIGURE),
-                        gyro_arw_rad_rts=max(float(np.sqrt(n2)), SMALLEST_FIGURE),
-                        base_motion_m_rts=float(np.sqrt(bounded)))
+        # (the figures are ≥ 0: math's square root is numpy's, correctly rounded; the grade built directly, as
+        # dataclasses.replace would, without its look at the fields)
+        grade = SensorGrade(stated.gyro_bias_rad_s, max(math.sqrt(n2), SMALLEST_FIGURE), stated.acc_bias_ms2,
+                            max(math.sqrt(q), SMALLEST_FIGURE), math.sqrt(bounded))
         parts = []
         if grade.gyro_arw_rad_rts > ALARM_FACTOR * stated.gyro_arw_rad_rts:
             parts.append(f"gyro noise {grade.gyro_arw_rad_rts / DRH_TO_RRS:.3g}°/√h, "
