@@ -26,7 +26,6 @@ from ..protocol.aiding_log import (
     VELOCITY_STD_RANGE,
 )
 from ..protocol.axes import axis_map
-from ..protocol.declared_frame import FrameSpec, FrameSpecError
 from ..protocol.formats import GNSS_INPUTS, IMU_FORMATS
 from ..protocol.imu_log import (
     DATASHEET_RANGES,
@@ -541,6 +540,8 @@ def _check_imu(imu: ImuConfig) -> None:
         raise ConfigError(f"imu.stim300.acc_range_g: {st.acc_range_g} g is not a STIM300 variant (one of "
                           f"{', '.join(str(g) for g in STIM300_DV_LSB)})")
     if imu.format == "frame":
+        from ..protocol.declared_frame import FrameSpec, FrameSpecError  # here: only a declared frame needs it
+
         try:
             FrameSpec.parse(imu.frame, imu.rate_hz)
         except FrameSpecError as exc:

@@ -329,7 +329,7 @@ class CompassLoops:
     def sigma(self, state: CompassState) -> AttitudeSigma:
         """1-sigma heading and level error (deg): bias limit, azimuth offset and the loop's noise."""
         bias_heading, bias_level = bias_limit_rad(self.grade, self.site.lat, self.gravity)
-        _, azimuth_sigma = self.schedule.sigmas(state.t_loop_s)
+        azimuth_sigma = _geometric(self.schedule.time_s, self.schedule.azimuth_sigma, state.t_loop_s)
         offset = 2.0 * self.grade.gyro_bias_rad_s / azimuth_sigma if state.azimuth_on and azimuth_sigma > 0 else 0.0
         P = state.P
         heading2 = bias_heading**2 + offset**2 + ESTIMATOR_EFFICIENCY * float(P[PU, PU])
