@@ -57,7 +57,24 @@ class ResultRecord:
 
     def to_json(self) -> str:
         """One line of strict JSON. A number that is not finite (trace_P aside, carried as null) is a fault upstream;
-        it is refused here, naming the fields, rather than written as NaN or Infinity, which no JSON reader takes."""
+        it is refused here, naming the fields, rather than written as NaN or Infinity, which no JSON reader takes.
+        A record of plain finite floats (every mode's but transfer alignment's) is formatted directly, as the encoder
+        writes it (float's repr, the pinned field order)."""
+        numbers = (self.t, *self.q, self.pitch_deg, self.roll_deg, self.heading_deg, self.heading_sigma_deg,
+                   self.level_sigma_deg, self.rho)
+        if (self.mount_q is None and self.mount_sigma_deg is None and self.phase in PHASES
+                and type(self.n_obs) is int and type(self.converged) is bool and type(self.trace_P) is float
+                and all(type(x) is float for x in numbers) and math.isfinite(sum(numbers))):
+            t, w, x, y, z, pitch, roll, heading, heading_sigma, level_sigma, rho = numbers
+            trace_P = repr(self.trace_P) if math.isfinite(self.trace_P) else "null"
+            return (f'{{"t":{t!r},"phase":"{self.phase}","q":[{w!r},{x!r},{y!r},{z!r}],"pitch_deg":{pitch!r},'
+                    f'"roll_deg":{roll!r},"heading_deg":{heading!r},"heading_sigma_deg":{heading_sigma!r},'
+                    f'"level_sigma_deg":{level_sigma!r},"converged":{"true" if self.converged else "false"},'
+                    f'"rho":{rho!r},"trace_P":{trace_P},"n_obs":{self.n_obs}}}')
+        return self._encoded()
+
+    def _encoded(self) -> str:
+        """:meth:`to_json` through the JSON encoder (any record)."""
         d = self.wire_dict()
         try:
             return _ENCODER.encode(d)

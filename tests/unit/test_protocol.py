@@ -456,3 +456,23 @@ def test_screening_rejections_are_not_faults_but_a_burst_of_them_is_an_alarm():
     assert messages.screening_alarm(before, glitch) == ["gnss_vel_rejected"]
     assert messages.screening_alarm(before, coarse_burst) == ["gnss_coarse_rejected"]
     assert messages.faults({"odo_rejected": 3, "seq_gaps": 1}) == {"seq_gaps": 1}
+
+
+_ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True)
+
+
+@settings(max_examples=400, deadline=None)
+@given(st.lists(_ANY_FLOAT, min_size=11, max_size=11), st.sampled_from(["coarse", "fine", "aligned", "disturbed"]),
+       st.booleans(), _ANY_FLOAT, st.integers(0, 10**15))
+def test_a_record_s_line_is_the_json_encoder_s(numbers, phase, converged, trace_P, n_obs):
+    """The directly formatted line of a plain record is the JSON encoder's, byte for byte; one holding a number that
+    is not finite is refused as the encoder path refuses it."""
+    t, w, x, y, z, pitch, roll, heading, heading_sigma, level_sigma, rho = numbers
+    record = ResultRecord(t, phase, (w, x, y, z), pitch, roll, heading, heading_sigma, level_sigma, converged, rho,
+                          trace_P, n_obs)
+    if all(math.isfinite(v) for v in numbers):
+        assert record.to_json() == record._encoded()
+        assert json.loads(record.to_json())["trace_P"] == (trace_P if math.isfinite(trace_P) else None)
+    else:
+        with pytest.raises(ValueError, match="not finite; not written"):
+            record.to_json()
