@@ -18,11 +18,11 @@ from ..protocol.results import ResultRecord
 from .align._blocks import CONTROL, DONE, MOTION, VERDICT, FixedBaseBlocks
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment, stepped_up
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
-from .align.disturbance import MotionMonitor
+from .align.disturbance import SUSPECT_FRACTION, MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.noise_check import MIN_OUTLIER_COUNT, OUTLIER_FACTOR, SETTLE_S, VERDICT_STEPS, NoiseMeter
-from .align.sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, auto_solver
+from .align.sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, SensorGrade, auto_solver
 from .align.solvers import _GAIN_POLICY, CentredWahba, RecursiveK
 from .config import Config, ConfigError
 from .modes import MODES
@@ -84,10 +84,12 @@ def fixed_base_blocks(pipeline: AlignmentPipeline) -> FixedBaseBlocks | None:
     noise = pipeline.noise
     settle = round(SETTLE_S / noise.step_s) if noise is not None else 0
     solver = pipeline.coarse.solver
+    motion = pipeline.motion
+    suspect_mps = SUSPECT_FRACTION * motion.threshold_mps if motion is not None else 0.0
     return FixedBaseBlocks(pipeline.site.lat, pipeline.site.gravity, solver, _GAIN_POLICY[solver.solver], noise,
-                           (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), pipeline.motion,
+                           (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), motion, suspect_mps,
                            pipeline.config.disturbance.check_interval_s, fine, pipeline.config.fine.compass,
-                           SIGMA_UNKNOWN_DEG)
+                           SIGMA_UNKNOWN_DEG, ESTIMATOR_EFFICIENCY)
 
 
 class Mode(Protocol):

@@ -6,8 +6,8 @@ heading, each called once per control step or record.
 The top eigenvector comes from cyclic Jacobi rotations of the symmetric 4×4 K (_linalg.pxi), run until the
 off-diagonal is zero in floating point: each rotation is orthogonal to the last bit, so the eigenvector is as
 accurate as LAPACK's (which ``numpy.linalg.eigh`` calls) and differs from it by rounding divided by the gap between
-K's two largest eigenvalues (tests/unit/test_attitude_kernels.py). The DCM is conventions.dcm_from_quat's formula element by element,
-the same bits (compiled with -ffp-contract=off: no fused multiply-adds).
+K's two largest eigenvalues (tests/unit/test_attitude_kernels.py). The DCM is conventions.dcm_from_quat's formula
+element by element, the same bits (compiled with -ffp-contract=off: no fused multiply-adds).
 
 The angles and the turn are the numpy functions' arithmetic in the same order, with the C library's atan2, asin,
 sin and cos where numpy may take its own vectorised ones (and a sum of squares where numpy's norm and matrix
@@ -72,33 +72,37 @@ cdef void _shepperd(const double* M, double* q) noexcept nogil:
     _normalize(q)
 
 
-cdef void _matmul3(const double* A, const double* B, double* out) noexcept nogil:
-    """A B of row-major 3×3 matrices, each term summed in index order."""
-    cdef int i, j
-    for i in range(3):
-        for j in range(3):
-            out[3 * i + j] = A[3 * i] * B[j] + A[3 * i + 1] * B[3 + j] + A[3 * i + 2] * B[6 + j]
-
-
-def chained_quaternion(const double[:, :] C_n_n0, const double[::1] q_b_n0, const double[::1] q_b_b0):
-    """[w, x, y, z] (w ≥ 0) of C_b^n = C_{n0}^{n} C(q_b_n0) C(q_b_b0), with C_{n0}^{n} = ``C_n_n0``ᵀ: the coarse
-    stage's attitude at one instant (coarse.solution_at)."""
+cdef void _coarse(const double* C_n_n0, const double* q_b_n0, const double* q_b_b0, double* B,
+                  double* q) noexcept nogil:
+    """q (w ≥ 0) of C_b^n = C_{n0}^{n} C(q_b_n0) C(q_b_b0), C_{n0}^{n} the transpose of C_n_n0 (row-major 9): the
+    coarse stage's attitude at one instant; C(q_b_b0) into B (9)."""
     cdef double T[9]
     cdef double A[9]
-    cdef double B[9]
     cdef double P[9]
     cdef double M[9]
     cdef int i, j
     for i in range(3):
         for j in range(3):
-            T[3 * i + j] = C_n_n0[j, i]
+            T[3 * i + j] = C_n_n0[3 * j + i]
     _dcm(q_b_n0[0], q_b_n0[1], q_b_n0[2], q_b_n0[3], A)
     _dcm(q_b_b0[0], q_b_b0[1], q_b_b0[2], q_b_b0[3], B)
-    _matmul3(T, A, P)
-    _matmul3(P, B, M)
+    _mat3_mul(T, A, P)
+    _mat3_mul(P, B, M)
+    _shepperd(M, q)
+
+
+def chained_quaternion(const double[:, :] C_n_n0, const double[::1] q_b_n0, const double[::1] q_b_b0):
+    """[w, x, y, z] (w ≥ 0) of C_b^n = C_{n0}^{n} C(q_b_n0) C(q_b_b0), with C_{n0}^{n} = ``C_n_n0``ᵀ: the coarse
+    stage's attitude at one instant (coarse.solution_at)."""
+    cdef double C[9]
+    cdef double B[9]
+    cdef int i, j
+    for i in range(3):
+        for j in range(3):
+            C[3 * i + j] = C_n_n0[i, j]
     out = np.empty(4)
     cdef double[::1] o = out
-    _shepperd(M, &o[0])
+    _coarse(C, &q_b_n0[0], &q_b_b0[0], B, &o[0])
     return out
 
 
@@ -172,10 +176,7 @@ def fine_record_angles(double lat, double elapsed_s, const double[::1] q_b_n0, c
     on for ``since_step_s`` at the commanded rate, times C(q_b_b0): CompassLoops.attitude), and the output rule
     (records.py): the level of whichever claims the smaller level σ, the heading of whichever claims the smaller
     heading σ (conventions.with_heading_of), through Shepperd's quaternion."""
-    cdef double T[9]
-    cdef double A[9]
     cdef double B[9]
-    cdef double P[9]
     cdef double M[9]
     cdef double F[9]
     cdef double C[9]
@@ -184,16 +185,9 @@ def fine_record_angles(double lat, double elapsed_s, const double[::1] q_b_n0, c
     cdef const double* heading
     cdef bint level_fine = fine_level_sigma_deg < coarse_level_sigma_deg
     cdef bint heading_fine = fine_heading_sigma_deg < coarse_heading_sigma_deg
-    cdef int i, j
+    cdef int i
     _C_n_n0_fixed(lat, elapsed_s, M)
-    for i in range(3):
-        for j in range(3):
-            T[3 * i + j] = M[3 * j + i]
-    _dcm(q_b_n0[0], q_b_n0[1], q_b_n0[2], q_b_n0[3], A)
-    _dcm(q_b_b0[0], q_b_b0[1], q_b_b0[2], q_b_b0[3], B)
-    _matmul3(T, A, P)
-    _matmul3(P, B, M)
-    _shepperd(M, q)   # the coarse attitude, as its solution holds it
+    _coarse(M, &q_b_n0[0], &q_b_b0[0], B, q)   # the coarse attitude, as its solution holds it
     if level_fine or heading_fine:
         for i in range(9):
             C[i] = C_b0_p[i // 3, i % 3]

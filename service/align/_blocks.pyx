@@ -45,8 +45,6 @@ cdef enum:
     KEY = 10      # level K1..K3, azimuth on, azimuth K1..K4, Earth-rate sign, step length
     MAX_KNOTS = 32
 
-cdef double SUSPECT_FRACTION = 0.25   # service/align/disturbance.SUSPECT_FRACTION
-cdef double ESTIMATOR_EFFICIENCY = 2.0   # service/align/sensor_model.ESTIMATOR_EFFICIENCY
 cdef double DEG = M_PI / 180.0
 
 
@@ -80,7 +78,7 @@ cdef class FixedBaseBlocks:
     # the motion monitor
     cdef bint with_motion
     cdef long ring_n
-    cdef double threshold, check_interval_s
+    cdef double suspect_mps, check_interval_s
     # the compass loops
     cdef bint with_fine
     cdef int n_knots
@@ -90,7 +88,7 @@ cdef class FixedBaseBlocks:
     cdef double radius_m, omega_cos, omega_sin, loops_gravity
     cdef double omega_ie_n[3]
     cdef int handover   # 0 by σ, 1 at a time
-    cdef double handover_time_s, handover_min_s, handover_sigma_deg, sigma_unknown_deg
+    cdef double handover_time_s, handover_min_s, handover_sigma_deg, sigma_unknown_deg, efficiency
     # the estimators' arrays, for their life (a restart builds new ones and a new loop), and the chunk's
     cdef double[:, ::1] alpha_sum, beta_sum, last_sums, ring_alpha, ring_beta, stored_dalpha
     cdef const long[::1] lags
@@ -108,12 +106,15 @@ cdef class FixedBaseBlocks:
     cdef int n_F, next_F
 
     def __init__(self, double lat, double gravity, solver, int policy, noise, noise_constants, motion,
-                 check_interval_s, fine, handover, double sigma_unknown_deg):
+                 double suspect_mps, double check_interval_s, fine, handover, double sigma_unknown_deg,
+                 double efficiency):
         """``solver``: the RecursiveK and its gain ``policy`` (solvers._GAIN_POLICY); ``noise``: the NoiseMeter or
         None, with ``noise_constants`` (settle steps, outlier factor, least outlier count, verdict steps);
-        ``motion``: the MotionMonitor or None, checked every ``check_interval_s``; ``fine``: the FineAlignment or None
-        (its loops' schedule and site constants), with the compass configuration's ``handover`` (its kind, time,
-        least time and σ) and σ's ceiling ``sigma_unknown_deg``."""
+        ``motion``: the MotionMonitor or None, checked every ``check_interval_s``, a window's velocity above
+        ``suspect_mps`` asking for σ (disturbance.SUSPECT_FRACTION of its threshold); ``fine``: the FineAlignment or
+        None (its loops' schedule and site constants), with the compass configuration's ``handover`` (its kind, time,
+        least time and σ), σ's ceiling ``sigma_unknown_deg`` and the estimator's ``efficiency``
+        (sensor_model.ESTIMATOR_EFFICIENCY)."""
         cdef int i
         self.lat, self.gravity = lat, gravity
         self.trace_Q, self.fixed_rho, self.policy = solver.trace_Q, solver.fixed_rho, policy
@@ -124,7 +125,7 @@ cdef class FixedBaseBlocks:
             self.lags, self.sums, self.counts = noise._lags, noise._sums, noise._counts
         self.with_motion = motion is not None
         if self.with_motion:
-            self.ring_n, self.threshold = motion._n, motion.threshold_mps
+            self.ring_n, self.suspect_mps = motion._n, suspect_mps
             self.check_interval_s = check_interval_s
             self.ring_elapsed, self.ring_alpha, self.ring_beta = motion._elapsed, motion._alpha, motion._beta
             self.ring_C = motion._C
@@ -148,6 +149,7 @@ cdef class FixedBaseBlocks:
             self.handover = 1 if handover.handover == "time" else 0
             self.handover_time_s, self.handover_min_s = handover.handover_time_s, handover.handover_min_s
             self.handover_sigma_deg, self.sigma_unknown_deg = handover.handover_sigma_deg, sigma_unknown_deg
+            self.efficiency = efficiency
 
     cdef const double* _transition_of(self, const double* key) noexcept nogil:
         """F of ``key`` (:data:`KEY` values), from the kept ones or computed (the oldest kept one replaced)."""
@@ -184,11 +186,11 @@ cdef class FixedBaseBlocks:
         else:
             drift2 = pow(terms[4] * elapsed_s, 2.0)
             noise_heading2 = terms[0] / pow(elapsed_s, 3.0) + terms[1] / elapsed_s + terms[2] / pow(elapsed_s, 5.0)
-            heading2 = terms[3] + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
+            heading2 = terms[3] + drift2 + self.efficiency * noise_heading2
             heading_deg = min(sqrt(heading2) / DEG, self.sigma_unknown_deg)
         # FixedBase._noise_part: the datasheet's bias limit taken out
         heading2 = max(pow(heading_deg * DEG, 2.0) - pow(terms[5], 2.0), 0.0)
-        return sqrt(heading2 / ESTIMATOR_EFFICIENCY) / DEG <= self.handover_sigma_deg
+        return sqrt(heading2 / self.efficiency) / DEG <= self.handover_sigma_deg
 
     def chunk(self, const Py_ssize_t[::1] ends, const Py_ssize_t[::1] fold_end, const double[:] t,
               const double[:] elapsed, alpha_array, const double[:, :, ::1] dK, const double[::1] trace_R,
@@ -312,7 +314,8 @@ cdef class FixedBaseBlocks:
                 if self.with_noise and folded > measured:
                     outliers += _hadamard_feed(self.lat, self.gravity, &observed_s[measured],
                                                &observed_alpha[measured, 0], folded - measured, &alpha_sum[0, 0],
-                                               &beta_sum[0, 0], alpha_sum.shape[0], &last_sums[0, 0], &lags[0], lags.shape[0], &sums[0], &counts[0],
+                                               &beta_sum[0, 0], alpha_sum.shape[0], &last_sums[0, 0], &lags[0],
+                                               lags.shape[0], &sums[0], &counts[0],
                                                C_rough if with_rough else NULL, &steps, &bad_until, self.settle_steps,
                                                self.outlier_factor, self.min_outlier_count, self.verdict_steps,
                                                &verdict_due)
@@ -379,7 +382,7 @@ cdef class FixedBaseBlocks:
                             _horizontal(self.lat, elapsed_s, &ring_C[oldest, 0, 0], a, beta, &ring_alpha[oldest, 0],
                                         &ring_beta[oldest, 0], gained)
                             speed = gained[0]
-                            if speed > SUSPECT_FRACTION * self.threshold:
+                            if speed > self.suspect_mps:
                                 stage = STOP_MOTION   # the monitor's Python steps take the check from here
                                 break
                         ring_elapsed[slot] = elapsed_s

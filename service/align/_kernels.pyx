@@ -245,8 +245,8 @@ def noise_figures(const double[::1] sums, const double[::1] counts, const double
                   const double[::1] lag_cubed, double step_s, double gravity, double min_span_s,
                   double min_mean_square):
     """NoiseMeter.figures: each lag τ (``lag_s``, with τ³ as the meter computed it once) with ``min_span_s`` of
-    stencils (counts × step ≥ it) gives its mean square m = sum / count, its row (8/3 τ, 2/3 g² τ³, 20 / τ) and its weight n_eff / (2 max(m, ``min_mean_square``)²),
-    n_eff = max(count × step / (2 τ), 1); the fit of :func:`weighted_nonnegative_fit`. Returns (q, N², S, their
+    stencils (counts × step ≥ it) gives its mean square m = sum / count, its row (8/3 τ, 2/3 g² τ³, 20 / τ) and
+    its weight n_eff / (2 max(m, ``min_mean_square``)²), n_eff = max(count × step / (2 τ), 1); the fit of :func:`weighted_nonnegative_fit`. Returns (q, N², S, their
     standard errors), or None before three lags have their span."""
     cdef int n = sums.shape[0], rows = 0, j
     cdef double A[8 * 3]

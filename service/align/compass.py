@@ -201,22 +201,22 @@ class CompassLoops:
         """A fixed-base record's attitude beside the coarse stage's (q_b_n0 and its (heading, level) σ, ``elapsed_s``
         into the alignment at latitude ``lat``): :func:`~service.align._attitude.fine_record_angles` with this state
         ``since_step_s`` after its last step."""
-        level, azimuth = self._gains(state)
-        on = state.azimuth_on and azimuth is not None
         return fine_record_angles(lat, elapsed_s, q_b_n0, np.ascontiguousarray(q_b_b0, dtype=float), *coarse_sigma_deg,
-                                  *fine_sigma_deg, state.C_b0_p, state.V, state.I_E, state.I_N, state.y, on, level[1],
-                                  azimuth[1] if on else 0.0, state.earth_sign, self.omega_ie_n, self.radius_m,
-                                  since_step_s)
+                                  *fine_sigma_deg, *self._platform(state), since_step_s)
 
     def attitude(self, state: CompassState, C_b_b0: np.ndarray, since_step_s: float) -> np.ndarray:
         """C_b^n (3, 3) of the body attitude C_{b}^{b0} (3, 3), ``since_step_s`` after the state's last step: the
         platform turned on at ω_p = s ω_ie^n + ω_c, the rate the state commands (the module docstring), compiled
         (_compass.pyx)."""
+        return platform_attitude(*self._platform(state), since_step_s, np.ascontiguousarray(C_b_b0, dtype=float))
+
+    def _platform(self, state: CompassState) -> tuple:
+        """What the compiled platform turn takes of a state and its gains: C_{b0}^{p}, V, I_E, I_N, y, whether the
+        azimuth loop runs, K2 of the level and the azimuth loops, the Earth-rate sign, ω_ie^n and the radius."""
         level, azimuth = self._gains(state)
         on = state.azimuth_on and azimuth is not None
-        return platform_attitude(state.C_b0_p, state.V, state.I_E, state.I_N, state.y, on, level[1],
-                                 azimuth[1] if on else 0.0, state.earth_sign, self.omega_ie_n, self.radius_m,
-                                 since_step_s, np.ascontiguousarray(C_b_b0, dtype=float))
+        return (state.C_b0_p, state.V, state.I_E, state.I_N, state.y, on, level[1], azimuth[1] if on else 0.0,
+                state.earth_sign, self.omega_ie_n, self.radius_m)
 
     def step(self, state: CompassState, dalpha_b0: np.ndarray, dt_s: float, advance_schedule: bool = True) -> None:
         """Advance ``state`` by one control step with the b0-frame velocity increment Δα (m/s).

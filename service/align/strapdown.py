@@ -93,4 +93,3 @@ def _rows(dtheta: np.ndarray, dv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             and dtheta.strides[0] % dtheta.itemsize == 0):
         return dtheta, dv
     return np.ascontiguousarray(dtheta), np.ascontiguousarray(dv)
-
