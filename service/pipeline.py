@@ -16,6 +16,7 @@ import numpy as np
 from ..protocol.imu_log import IMU_WIDTH
 from ..protocol.results import ResultRecord
 from .align._blocks import CONTROL, DONE, MOTION, VERDICT, FixedBaseBlocks
+from .align._strapdown import rows_offset
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment, stepped_up
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.disturbance import SUSPECT_FRACTION, MotionMonitor
@@ -51,15 +52,12 @@ def _imu_rows(t: np.ndarray, dtheta: object, dv: object) -> np.ndarray | None:
     reader's block), for the pipeline to read in place; None for any other layout (then copied)."""
     owner = getattr(t, "base", None)
     if (owner is None or owner is not getattr(dtheta, "base", None) or owner is not getattr(dv, "base", None)
-            or t.dtype != np.float64 or dtheta.dtype != np.float64 or dv.dtype != np.float64):
+            or t.dtype != np.float64 or dtheta.dtype != np.float64 or dv.dtype != np.float64
+            or (offset := rows_offset(owner, t, dtheta, dv)) < 0):
         return None
-    n, row = len(t), IMU_WIDTH * t.itemsize
-    start = t.__array_interface__["data"][0]
-    if (t.strides != (row,) or dtheta.shape != (n, 3) or dv.shape != (n, 3) or dtheta.strides != (row, 8)
-            or dv.strides != (row, 8) or dtheta.__array_interface__["data"][0] != start + 8
-            or dv.__array_interface__["data"][0] != start + 32):
-        return None
-    return np.lib.stride_tricks.as_strided(t, (n, IMU_WIDTH), (row, 8), writeable=False)
+    rows = np.ndarray((len(t), IMU_WIDTH), np.float64, owner, offset, (IMU_WIDTH * 8, 8))
+    rows.flags.writeable = False
+    return rows
 
 
 def _fold_to(solver: RecursiveK | CentredWahba, dK: np.ndarray, trace_R: np.ndarray, folded: int, upto: int) -> int:

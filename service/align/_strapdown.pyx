@@ -12,6 +12,7 @@ whole block: what the live path's records of an incomplete block rely on.
 Frames and units: Δθ (rad) and Δv (m/s) in body axes; the attitude C_b^b0 as [w, x, y, z] with w ≥ 0; α (m/s) in
 b0 axes.
 """
+from cpython.buffer cimport PyBUF_SIMPLE, PyBuffer_Release, PyObject_GetBuffer
 from libc.math cimport cos, sin, sqrt
 
 include "_quaternion.pxi"
@@ -132,6 +133,31 @@ def integrate(double[::1] q_b_b0, double[::1] alpha_b0, double[::1] dtheta_prev,
         _integrate(&q_b_b0[0], &alpha_b0[0], &dtheta_prev[0], &dv_prev[0], &dtheta[0, 0], &dv[0, 0], row, n,
                    block_samples, &q[0, 0], &alpha[0, 0])
     return q_out, alpha_out
+
+
+def rows_offset(object owner, const double[:] t, const double[:, :] dtheta, const double[:, :] dv):
+    """Where the rows (t, Δθ, Δv) whose columns are ``t`` (N,), ``dtheta`` and ``dv`` (N, 3) lie in ``owner``'s
+    buffer (their base: a log reader's block), in bytes from its start: -1 unless each row is seven float64 in
+    order, 56 bytes after the last, all inside one contiguous buffer. Addresses compared, nothing read: the pipeline
+    reads such rows in place (``numpy.ndarray(..., buffer=owner, offset=...)``) without the array-interface dicts,
+    whose keys Python interns anew at every call."""
+    cdef Py_ssize_t n = t.shape[0], row = 7 * sizeof(double), offset
+    cdef Py_buffer view
+    if (n == 0 or dtheta.shape[0] != n or dv.shape[0] != n or dtheta.shape[1] != 3 or dv.shape[1] != 3
+            or t.strides[0] != row or dtheta.strides[0] != row or dv.strides[0] != row
+            or dtheta.strides[1] != sizeof(double) or dv.strides[1] != sizeof(double)
+            or <const char*>&dtheta[0, 0] != <const char*>&t[0] + sizeof(double)
+            or <const char*>&dv[0, 0] != <const char*>&t[0] + 4 * sizeof(double)):
+        return -1
+    try:
+        PyObject_GetBuffer(owner, &view, PyBUF_SIMPLE)
+    except BufferError:   # not one contiguous buffer
+        return -1
+    offset = <const char*>&t[0] - <const char*>view.buf
+    if offset < 0 or offset + n * row > view.len:
+        offset = -1
+    PyBuffer_Release(&view)
+    return offset
 
 
 def prefix_product(double[:, :, ::1] P):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import sinsalign.service.pipeline as pipeline_module
 from sinsalign.service.config import config_from_mapping
-from sinsalign.service.pipeline import AlignmentPipeline
+from sinsalign.service.pipeline import AlignmentPipeline, _imu_rows
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
@@ -92,3 +92,24 @@ def test_a_reader_s_rows_are_read_in_place_with_the_same_records():
                         for r in p.process(*columns(block[k:k + 777]))])
     assert records[0] == records[1] and len(records[0]) == 60
     assert all(np.array_equal(a, b) for a, b in zip(blocks, kept, strict=True))
+
+
+def test_rows_are_taken_in_place_only_where_they_lie_as_a_reader_s_rows():
+    """The in-place view is exactly the rows, read-only, wherever in its owner they begin (a row slice, a 1-D
+    buffer of the owner's); any other layout (another owner, other columns, other row length, a step over rows,
+    another dtype) is None, and the pipeline copies."""
+    block = np.arange(12 * 7, dtype=float).reshape(12, 7)
+    rows = block[3:9]
+    view = _imu_rows(rows[:, 0], rows[:, 1:4], rows[:, 4:7])
+    assert view is not None and np.shares_memory(view, block) and not view.flags.writeable
+    assert np.array_equal(view, rows)
+    flat = np.frombuffer(block.tobytes(), dtype=float).reshape(12, 7)
+    assert np.array_equal(_imu_rows(flat[:, 0], flat[:, 1:4], flat[:, 4:7]), block)
+    wide = np.zeros((12, 8))
+    other = block.copy()
+    for columns in ((rows[:, 0], rows[:, 1:4], other[3:9, 4:7]), (rows[:, 0], rows[:, 4:7], rows[:, 1:4]),
+                    (wide[:, 0], wide[:, 1:4], wide[:, 4:7]), (block[::2, 0], block[::2, 1:4], block[::2, 4:7]),
+                    (rows[:, 0].copy(), rows[:, 1:4], rows[:, 4:7])):
+        assert _imu_rows(*columns) is None
+    as32 = block.astype(np.float32)
+    assert _imu_rows(as32[:, 0], as32[:, 1:4], as32[:, 4:7]) is None
