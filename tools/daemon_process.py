@@ -40,14 +40,17 @@ class DaemonProcess:
                                         stderr=subprocess.DEVNULL)
         self.arrivals: dict[float, float] = {}   # attitude t (s, rounded) → monotonic arrival time
         self.count = 0
+        self.watching = True   # keep each attitude's arrival time (False: only count, as when written flat out)
         time.sleep(1.5)   # imports, the port and the session
         self.session = open_session(ZenohConfig(connect=(f"tcp/127.0.0.1:{self.port}",)))
         self._sub = self.session.declare_subscriber(UnitKeys("sinsalign", "bench").attitude, self._on_attitude)
         time.sleep(0.5)
 
     def _on_attitude(self, sample: zenoh.Sample) -> None:
-        self.arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = time.monotonic()
+        arrival = time.monotonic()
         self.count += 1
+        if self.watching:
+            self.arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = arrival
 
     def samples_in(self) -> int:
         """The samples the daemon has decoded from the pty so far (its state query's ``samples_in_serial``)."""

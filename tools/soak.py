@@ -1,13 +1,16 @@
-"""Soak: hours of simulated 200-Hz data through the live daemon as fast as it takes them.
+"""Soak: hours of simulated 200-Hz data through the live daemon, attitude for every sample.
 
-The daemon runs in its own process reading a pty (``DaemonProcess``); frames of a static base
-with sensor noise are generated on the fly and written flat out (the pty's back-pressure paces
-the writer to the daemon). Every simulated ``report_every_s`` the daemon's RSS and the latency
-of its 1-Hz attitude (epoch frame written → attitude received) are sampled, so growth in either
-shows as a trend.
+The daemon runs in its own process reading a pty (``DaemonProcess``) and publishes attitude for every sample, the
+most work a sample can ask of it. Frames of a static base with sensor noise are generated on the fly. Each report
+interval of simulated time is written flat out (the pty's back-pressure paces the writer to the daemon) but for its
+last ``window_s``, which is written at the IMU's own rate, one frame at a time, as a real 200-Hz line delivers it:
+each of those frames' write time pairs with its attitude's arrival at a separate Zenoh subscriber (frame → attitude
+latency), and the daemon's RSS is read after the window. Growth in memory or latency over the day shows as a trend;
+the day itself takes minutes.
 """
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -18,49 +21,84 @@ from sinsalign.protocol.serial_frame import encode_imu_frames
 from .daemon_process import DaemonProcess
 from .sim.imu import true_increments
 from .sim.scenarios import get_scenario
-from .virtual_imu import write_all
+from .virtual_imu import FramePlayer, write_all
+
+FLAT_OUT_PIECE_S = 10.0
+"""Simulated seconds of frames per write while flat out."""
 
 
 @dataclass(frozen=True, slots=True)
 class SoakSample:
-    hours: float          # simulated time
+    """One report: the daemon after ``hours`` of simulated data."""
+
+    hours: float            # simulated time
     wall_s: float
-    rss_mib: float
-    latency_p50_ms: float
-    latency_p99_ms: float
+    rss_mib: float          # the daemon's resident memory after the window
+    latency_ms: np.ndarray  # frame written → attitude received, each frame of the window that got one (ms)
+    frames: int             # frames in the window
+
+    @property
+    def received(self) -> int:
+        return len(self.latency_ms)
 
 
-def soak(hours: float = 24.0, report_every_s: float = 3600.0, seed: int = 0,
+def percentiles_ms(latency_ms: np.ndarray) -> tuple[float, float, float]:
+    """p50, p99 and max of latencies (ms); NaN for none."""
+    if not len(latency_ms):
+        return (float("nan"),) * 3
+    return float(np.percentile(latency_ms, 50)), float(np.percentile(latency_ms, 99)), float(latency_ms.max())
+
+
+def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 10.0, seed: int = 0,
          on_sample: Callable[[SoakSample], None] | None = None) -> list[SoakSample]:
+    """``hours`` of a noisy static base at 200 Hz through ``sinsalign serve``; a :class:`SoakSample` every
+    ``report_every_s`` of simulated time, its last ``window_s`` played at the IMU's rate."""
     scenario = get_scenario("static")
     rate = scenario.rate_hz
     dt = 1.0 / rate
-    block = int(rate)   # one second of frames per write
     dtheta0, dv0 = true_increments(scenario.motion, scenario.site, np.zeros(1), dt)
     gyro_std, acc_std = scenario.errors.increment_noise_std(dt)
     rng = np.random.default_rng(seed)
+
+    def frames(first: int, count: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        return ((first + np.arange(1, count + 1)) * dt, dtheta0 + gyro_std * rng.standard_normal((count, 3)),
+                dv0 + acc_std * rng.standard_normal((count, 3)))
+
     samples: list[SoakSample] = []
-    with DaemonProcess(scenario.site, rate, 1.0) as daemon:
-        start = time.monotonic()
-        written: dict[float, float] = {}
-        next_report = report_every_s
-        for second in range(int(hours * 3600)):
-            dtheta = dtheta0 + gyro_std * rng.standard_normal((block, 3))
-            dv = dv0 + acc_std * rng.standard_normal((block, 3))
-            first = second * block
-            frames = encode_imu_frames(first, (first + np.arange(1, block + 1)) * dt, dtheta, dv)
-            write_all(daemon.pty.master_fd, frames, timeout_s=10.0)
-            written[float(second + 1)] = time.monotonic()   # the epoch frame is the last of the block
-            if second + 1 >= next_report:
-                next_report += report_every_s
+    per_report, per_window, per_piece = round(report_every_s * rate), round(window_s * rate), round(
+        FLAT_OUT_PIECE_S * rate)
+    with DaemonProcess(scenario.site, rate, dt) as daemon:
+        daemon.watching = False
+        start, written = time.monotonic(), 0
+        for report in range(round(hours * 3600.0 / report_every_s)):
+            window_start = (report + 1) * per_report - per_window
+            while written < window_start:
+                count = min(per_piece, window_start - written)
+                write_all(daemon.pty.master_fd, encode_imu_frames(written, *frames(written, count)), timeout_s=30.0)
+                written += count
+            t, dtheta, dv = frames(written, per_window)
+            player = FramePlayer(daemon.pty.master_fd, 1.0, seq=written)
+            stamps = np.empty(per_window)
+            time.sleep(0.5)   # the flat-out frames taken: the window's frames meet an idle line, as at 200 Hz
+            daemon.arrivals.clear()
+            daemon.watching = True
+            gc.collect()
+            gc.freeze()   # this process's collector must not delay the subscriber's arrival stamps
+            try:
+                for k in range(per_window):
+                    player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
+                    stamps[k] = time.monotonic()
                 time.sleep(0.2)
-                latency = np.array([daemon.arrivals[t] - w for t, w in written.items() if t in daemon.arrivals])
-                written.clear()
-                daemon.arrivals.clear()
-                sample = SoakSample((second + 1) / 3600.0, time.monotonic() - start, daemon.rss_mib(),
-                                    float(np.percentile(latency, 50) * 1e3) if len(latency) else float("nan"),
-                                    float(np.percentile(latency, 99) * 1e3) if len(latency) else float("nan"))
-                samples.append(sample)
-                if on_sample:
-                    on_sample(sample)
+            finally:
+                gc.unfreeze()
+                daemon.watching = False
+            written += per_window
+            keys = np.round(t, 6)
+            latency = np.array([daemon.arrivals[key] - stamp for key, stamp in zip(keys, stamps, strict=True)
+                                if key in daemon.arrivals]) * 1e3
+            sample = SoakSample(written * dt / 3600.0, time.monotonic() - start, daemon.rss_mib(), latency,
+                                per_window)
+            samples.append(sample)
+            if on_sample:
+                on_sample(sample)
     return samples
