@@ -102,9 +102,10 @@ class SampleGate:
                 if end > k:   # plain rows, each after the one before it, which is the last admitted
                     self.counters.status_flagged += int(np.count_nonzero(flags[k:end, 0]))
                     rows.append(block[k:end])
-                    self._last, last_here, k = block[end - 1], end - 1, end
+                    # a copy: a view would keep this whole read's array alive until the next one
+                    self._last, last_here, k = block[end - 1].copy(), end - 1, end
                     continue
-            row = block[k]
+            row = block[k].copy()   # kept as the last admitted or held behind: not a view of the read
             t, (status, saturated) = float(row[0]), flags[k]
             k += 1
             if clockless[k - 1] or out_of_range[k - 1]:

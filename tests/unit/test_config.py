@@ -311,10 +311,11 @@ def test_replay_says_which_stages_ran(capsys: pytest.CaptureFixture[str], tmp_pa
     assert f"; {stages})" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("argv", [["benchmark", "--stream-hours", "0.001"], ["soak", "--hours", "0.1"]])
+@pytest.mark.parametrize("argv", [["benchmark", "--stream-hours", "0.001"], ["soak", "--hours", "0.1"],
+                                  ["soak", "--window", "600", "--report-every", "600"]])
 def test_benchmark_and_soak_refuse_a_run_too_short_to_report(capsys: pytest.CaptureFixture[str],
                                                              argv: list[str]) -> None:
-    """Too short a stream or soak ended in a raw IndexError after the run; now a clear error before it."""
+    """Too short a stream or soak (or a soak's window as long as its report) is a clear error before the run."""
     assert main(argv) == 2
     assert argv[1] in capsys.readouterr().err
 
