@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._frames import imu_run
+from .buffers import read_sized
 from .counters import Counters, count
 from .framing import sync_tail
 from .messages import AIDING_FIELDS, AidingSample, MessageError
@@ -291,7 +292,7 @@ class FrameDecoder:
         buf = self._buffer
         pos = used = 0
         # one array for every run of this call (each run a view of it): room for as many frames as the bytes hold
-        rows = np.empty((len(buf) // IMU_FRAME_BYTES, IMU_ROW_COLUMNS)) if fast else None
+        rows = read_sized(len(buf) // IMU_FRAME_BYTES, IMU_ROW_COLUMNS) if fast else None
         while True:
             if rows is not None and self.sequence.last is not None:
                 n, pos, last = imu_run(buf, pos, self.sequence.last, rows[used:])

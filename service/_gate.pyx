@@ -6,6 +6,8 @@ from libc.math cimport INFINITY, fabs, isnan, rint
 
 import numpy as np
 
+from sinsalign.protocol.buffers import read_sized
+
 
 cdef inline double _abs_max3(double a, double b, double c) noexcept nogil:
     """numpy's max of |a|, |b|, |c|: NaN if any is."""
@@ -16,21 +18,14 @@ cdef inline double _abs_max3(double a, double b, double c) noexcept nogil:
     return m
 
 
-def _scratch(long n, dtype):
-    """An array of ``n`` whose buffer holds the next power of two: a read's arrays then come in a few sizes, not one
-    per read length, and numpy's and the C library's caches of freed buffers (kept per size) stop filling up over
-    hours of reads of every length (the daemon's resident memory grew by a megabyte a day with them)."""
-    return np.empty(1 << max(n - 1, 0).bit_length(), dtype=dtype)[:n]
-
-
 def screen(const double[:, :] rows, const long[:] saturated, double max_dtheta_rad, double max_dv_mps,
            double max_time_s):
     """Rows (N, ≥ 7: t s, Δθ rad, Δv m/s) and their saturated flags (N,) → (largest |Δθ| (N,), largest |Δv| (N,),
     clockless: not |t| ≤ ``max_time_s``, out of range: an increment beyond the IMU's range in a row not flagged
     saturated, refused: any of the three)."""
     cdef long n = rows.shape[0], k
-    dtheta_out, dv_out = _scratch(n, np.float64), _scratch(n, np.float64)
-    clockless_out, range_out, refused_out = (_scratch(n, np.bool_) for _ in range(3))
+    dtheta_out, dv_out = read_sized(n), read_sized(n)
+    clockless_out, range_out, refused_out = (read_sized(n, dtype=np.bool_) for _ in range(3))
     cdef double[::1] dtheta_max = dtheta_out, dv_max = dv_out
     cdef unsigned char[::1] clockless = clockless_out.view(np.uint8), beyond = range_out.view(np.uint8)
     cdef unsigned char[::1] refused = refused_out.view(np.uint8)
@@ -49,7 +44,7 @@ def plain_rows(const double[:] t, const unsigned char[:] refused, double last_t,
     even)."""
     cdef long n = t.shape[0], k
     cdef double before
-    out = _scratch(n, np.bool_)
+    out = read_sized(n, dtype=np.bool_)
     cdef unsigned char[::1] plain = out.view(np.uint8)
     for k in range(n):
         before = (-INFINITY if isnan(last_t) else last_t) if k == 0 else t[k - 1]

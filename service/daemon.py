@@ -108,7 +108,9 @@ class Daemon:
         self.ingest.arrival_clock.observe(zenoh_rows[:, 0], arrival_s)
         if receiver:
             self.ingest.decode_receiver(receiver, arrival_s)
-        return zenoh_rows if serial is None else np.concatenate((serial, zenoh_rows))
+        if serial is None or not len(zenoh_rows):
+            return zenoh_rows if serial is None else serial
+        return np.concatenate((serial, zenoh_rows))
 
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
