@@ -499,7 +499,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "REPORT_EVERY simulated seconds flat out (as fast as the daemon reads them) but for the last "
                        "WINDOW seconds, which go at 200 Hz one frame at a time. Every report gives the daemon's RSS "
                        "and the frame → attitude latency of the window's frames; the end, the RSS growth after the "
-                       "first report and the latency over every window. 24 h take about 15 min.")
+                       "first report and the latency over every window. 24 h take about 12 min.")
     p.add_argument("--hours", type=POSITIVE, default=24.0, help="hours of simulated data (default 24)")
     p.add_argument("--report-every", type=POSITIVE, default=3600.0, metavar="S",
                    help="simulated seconds per report (default 3600)")

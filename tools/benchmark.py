@@ -1,7 +1,6 @@
 """Benchmarks (numbers, not pass/fail): replay throughput, per-sample latency, memory over a 24 h stream."""
 from __future__ import annotations
 
-import gc
 import os
 import resource
 import subprocess
@@ -170,30 +169,17 @@ def bench_live(seconds: float = 20.0, flat_out_s: float = 5.0, output_period_s: 
     from sinsalign.protocol.serial_frame import IMU_FRAME_BYTES, encode_imu_frames
 
     from .daemon_process import DaemonProcess
-    from .virtual_imu import FramePlayer, write_all
+    from .virtual_imu import write_all
 
     scenario = get_scenario("seed000-swing")
     dt = 1.0 / scenario.rate_hz
     with DaemonProcess(scenario.site, scenario.rate_hz, output_period_s or dt) as daemon:
         t = np.arange(1, int(seconds * scenario.rate_hz) + 1) * dt
         dtheta, dv = true_increments(scenario.motion, scenario.site, t - dt, dt)
-        written = np.empty(len(t))
-        player = FramePlayer(daemon.pty.master_fd, 1.0)
         cpu0, wall0 = daemon.cpu_seconds(), time.monotonic()
-        # the stamps are this process's: its own collector's full passes (the simulation's objects) must not
-        # delay the subscriber's arrival stamps
-        gc.collect()
-        gc.freeze()
-        try:
-            for k in range(len(t)):   # one frame at a time, stamping the write
-                player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
-                written[k] = time.monotonic()
-            time.sleep(0.5)
-        finally:
-            gc.unfreeze()
+        latency = daemon.play_paced(t, dtheta, dv, settle_s=0.5)
         cpu_share = (daemon.cpu_seconds() - cpu0) / (time.monotonic() - wall0)
-        latency = np.array([daemon.arrivals[round(tk, 6)] - wk for tk, wk in zip(t, written, strict=True)
-                            if round(tk, 6) in daemon.arrivals] or [np.nan]) * 1e3
+        latency = latency if len(latency) else np.array([np.nan])
         received = daemon.count
         # flat out: every frame as fast as the pty accepts it, for flat_out_s seconds of writing (the frames encoded
         # beforehand: the writer must not be the bound), counted by the daemon's own decoded samples (its state

@@ -5,6 +5,7 @@ For the benchmarks and the soak: the daemon is measured from outside, as a user 
 """
 from __future__ import annotations
 
+import gc
 import os
 import subprocess
 import sys
@@ -12,6 +13,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import zenoh
 from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
@@ -21,7 +23,7 @@ from sinsalign.service.config import ZenohConfig
 from sinsalign.service.zenoh_session import open_session
 
 from .demo import free_loopback_port
-from .virtual_imu import PtyPair
+from .virtual_imu import FramePlayer, PtyPair
 
 
 class DaemonProcess:
@@ -51,6 +53,28 @@ class DaemonProcess:
         self.count += 1
         if self.watching:
             self.arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = arrival
+
+    def play_paced(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int = 0,
+                   settle_s: float = 0.2) -> np.ndarray:
+        """Write samples (t (N,) s, Δθ, Δv (N, 3)) as frames numbered from ``seq`` at their own rate, one frame per
+        write as a real line delivers them, stamping each write; after ``settle_s`` for the last attitudes, the
+        frame → attitude latency (ms) of each frame whose attitude arrived (the daemon publishing every sample)."""
+        player = FramePlayer(self.pty.master_fd, 1.0, seq=seq)
+        stamps = np.empty(len(t))
+        self.arrivals.clear()
+        self.watching = True
+        gc.collect()
+        gc.freeze()   # this process's collector must not delay the subscriber's arrival stamps
+        try:
+            for k in range(len(t)):
+                player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
+                stamps[k] = time.monotonic()
+            time.sleep(settle_s)
+        finally:
+            gc.unfreeze()
+        keys = np.round(t, 6)
+        return np.array([self.arrivals[key] - stamp for key, stamp in zip(keys, stamps, strict=True)
+                         if key in self.arrivals]) * 1e3
 
     def samples_in(self) -> int:
         """The samples the daemon has decoded from the pty so far (its state query's ``samples_in_serial``)."""

@@ -10,7 +10,6 @@ the day itself takes minutes.
 """
 from __future__ import annotations
 
-import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -21,7 +20,7 @@ from sinsalign.protocol.serial_frame import encode_imu_frames
 from .daemon_process import DaemonProcess
 from .sim.imu import true_increments
 from .sim.scenarios import get_scenario
-from .virtual_imu import FramePlayer, write_all
+from .virtual_imu import write_all
 
 FLAT_OUT_PIECE_S = 10.0
 """Simulated seconds of frames per write while flat out."""
@@ -76,26 +75,10 @@ def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 
                 count = min(per_piece, window_start - written)
                 write_all(daemon.pty.master_fd, encode_imu_frames(written, *frames(written, count)), timeout_s=30.0)
                 written += count
-            t, dtheta, dv = frames(written, per_window)
-            player = FramePlayer(daemon.pty.master_fd, 1.0, seq=written)
-            stamps = np.empty(per_window)
             time.sleep(0.5)   # the flat-out frames taken: the window's frames meet an idle line, as at 200 Hz
-            daemon.arrivals.clear()
-            daemon.watching = True
-            gc.collect()
-            gc.freeze()   # this process's collector must not delay the subscriber's arrival stamps
-            try:
-                for k in range(per_window):
-                    player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
-                    stamps[k] = time.monotonic()
-                time.sleep(0.2)
-            finally:
-                gc.unfreeze()
-                daemon.watching = False
+            latency = daemon.play_paced(*frames(written, per_window), seq=written)
+            daemon.watching = False
             written += per_window
-            keys = np.round(t, 6)
-            latency = np.array([daemon.arrivals[key] - stamp for key, stamp in zip(keys, stamps, strict=True)
-                                if key in daemon.arrivals]) * 1e3
             sample = SoakSample(written * dt / 3600.0, time.monotonic() - start, daemon.rss_mib(), latency,
                                 per_window)
             samples.append(sample)
