@@ -10,7 +10,9 @@ types and raise :class:`MessageError` with a reason; they never execute or evalu
 - attitude out (``…/attitude``): v, unit and the pinned result fields (t, phase, q, pitch_deg,
   roll_deg, heading_deg, heading_sigma_deg, level_sigma_deg, converged, rho, trace_P, n_obs); in
   transfer alignment also mount_q [4] (C_bs^bm, scalar first) and mount_sigma_deg.
-- status out (``…/status``, 1 Hz): v, unit, uptime_s, health, phase, t_last, last_error, counters {name: int}.
+- status out (``…/status``, 1 Hz): v, unit, uptime_s, health, phase, t_last, last_error, counters {name: int},
+  loop {reads, p50_ms, p99_ms, max_ms, max_ms_since_start} (the daemon's own read → published time:
+  service/loop_timing.py).
 """
 from __future__ import annotations
 
@@ -212,13 +214,16 @@ def decode_attitude(data: bytes) -> dict[str, Any]:
 
 
 def status_message(unit: str, uptime_s: float, health: str, phase: str, t_last: float | None,
-                   last_error: str | None, counters: dict[str, int]) -> dict[str, Any]:
+                   last_error: str | None, counters: dict[str, int],
+                   loop: dict[str, float | int | None] | None = None) -> dict[str, Any]:
     return {"v": VERSION, "unit": unit, "uptime_s": uptime_s, "health": health, "phase": phase, "t_last": t_last,
-            "last_error": last_error, "counters": counters}
+            "last_error": last_error, "counters": counters, "loop": loop}
 
 
 def decode_status(data: bytes) -> dict[str, Any]:
     m = unpack_map(data)
-    if m.get("health") not in HEALTH or not isinstance(m.get("counters"), dict):
-        raise MessageError("status: health must be one of " + ", ".join(HEALTH) + " and counters a map")
+    if m.get("health") not in HEALTH or not isinstance(m.get("counters"), dict) or \
+            not isinstance(m.get("loop", {}), dict | None):
+        raise MessageError("status: health must be one of " + ", ".join(HEALTH) + ", counters a map and loop a map "
+                           "or null")
     return m

@@ -34,6 +34,7 @@ from ..protocol.results import ResultRecord
 from .config import Config, ConfigError
 from .health import health
 from .ingest import Ingest, SampleCounters
+from .loop_timing import LoopTiming
 from .nmea_outputs import NmeaOutputs
 from .recording import open_recording
 from .ros_outputs import RosImuOutput
@@ -84,6 +85,7 @@ class Daemon:
         self.inputs = ZenohInputs(session, self.keys, config.zenoh.imu_input, self.ingest.aid_kinds, self.counters,
                                   self._error)
         self._next_status = time.monotonic()
+        self.loop_timing = LoopTiming()
 
     @property
     def counters(self) -> SampleCounters:
@@ -91,8 +93,8 @@ class Daemon:
         return self.ingest.counters
 
     # ---- inputs -------------------------------------------------------------------------
-    def _read_inputs(self) -> np.ndarray:
-        """Decoded samples from every input, in arrival order.
+    def _read_inputs(self) -> tuple[np.ndarray, float]:
+        """Decoded samples from every input, in arrival order, and when the first read returned (monotonic s).
 
         The serial port first (its read waits up to 20 ms for data), then the Zenoh IMU inbox,
         drained without waiting when a serial port paces the loop, or waited on for up to 20 ms
@@ -102,25 +104,33 @@ class Daemon:
         # the IMU frames sent before them are then read, so an epoch never seems to lead the IMU (at the bench's
         # ×speed a later read of the receiver would)
         receiver = self.gnss_serial.read(wait=False) if self.gnss_serial is not None else b""
-        serial = self.ingest.decode_serial(self.serial.read(), time.monotonic()) if self.serial is not None else None
+        if self.serial is not None:
+            data = self.serial.read()
+            read_at = time.monotonic()
+            serial = self.ingest.decode_serial(data, read_at)
+        else:
+            serial = None
         zenoh_rows = self.inputs.imu_samples(0.0 if serial is not None else 0.02)
         arrival_s = time.monotonic()
+        if serial is None:
+            read_at = arrival_s
         self.ingest.arrival_clock.observe(zenoh_rows[:, 0], arrival_s)
         if receiver:
             self.ingest.decode_receiver(receiver, arrival_s)
         if serial is None or not len(zenoh_rows):
-            return zenoh_rows if serial is None else serial
-        return np.concatenate((serial, zenoh_rows))
+            return (zenoh_rows if serial is None else serial), read_at
+        return np.concatenate((serial, zenoh_rows)), read_at
 
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
         """One pass of the loop: read, check, align, publish; returns the records published."""
-        samples = self._read_inputs()
-        if len(samples):
-            self._last_input = time.monotonic()
+        samples, read_at = self._read_inputs()
         records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs(), defer_control=True)
         for output in self._record_outputs:
             output.records(records)
+        if len(samples):
+            self._last_input = now = time.monotonic()
+            self.loop_timing.add(now - read_at)
         self.ingest.settle()   # the control step the records did not wait for
         if records:
             self.last_record = records[-1]
@@ -201,7 +211,7 @@ class Daemon:
         last_error = last_error or self.last_error or (self.serial.last_error if self.serial is not None else None)
         phase = self.last_record.phase if self.last_record is not None else "coarse"
         return messages.status_message(self.keys.unit, now - self._started, state, phase,
-                                       ingest.t_last, last_error, counters)
+                                       ingest.t_last, last_error, counters, self.loop_timing.summary(advance))
 
     def state(self) -> dict:
         """The answer to a state query: the status now, the last attitude and the configuration in effect."""

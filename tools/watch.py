@@ -90,7 +90,7 @@ class WatchClient:
 
 
 ROWS = ("alive", "t (s)", "phase", "heading (°)", "heading σ (°)", "pitch (°)", "roll (°)", "level σ (°)",
-        "converged", "health", "frames", "drops and faults", "last error")
+        "converged", "health", "frames", "drops and faults", "loop p99 / max (ms)", "last error")
 
 
 def units_table(prefix: str, units: dict[str, UnitView]) -> Table:
@@ -112,11 +112,13 @@ def _column(view: UnitView) -> list[str]:
     valid = {k: v for k, v in counters.items() if type(k) is str and type(v) is int and v >= 0}
     drops = messages.fault_count(valid) + view.bad_messages
     whole = len(valid) == len(raw) if isinstance(raw, dict) else raw is None
+    loop = s.get("loop") if isinstance(s.get("loop"), dict) else {}
     return ["yes" if view.alive else "no", _num(a.get("t"), ".1f"), _text(a.get("phase"), 16),
             _num(a.get("heading_deg"), ".4f"), _num(a.get("heading_sigma_deg"), ".4f"), _num(a.get("pitch_deg"), ".4f"),
             _num(a.get("roll_deg"), ".4f"), _num(a.get("level_sigma_deg"), ".4f"), _cell(a.get("converged"), (bool,)),
             _text(s.get("health"), 16), _cell(counters.get("samples_used"), (int,)),
-            str(drops) if whole else f"≥{drops}", _text(s.get("last_error"), 48)]
+            str(drops) if whole else f"≥{drops}",
+            f'{_num(loop.get("p99_ms"), ".2f")} / {_num(loop.get("max_ms"), ".2f")}', _text(s.get("last_error"), 48)]
 
 
 def _cell(value: object, types: tuple[type, ...], show: Callable[[Any], str] = str) -> str:

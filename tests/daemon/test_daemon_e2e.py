@@ -38,8 +38,21 @@ def test_serial_frames_at_20x_real_time_reach_subscribers_equal_to_offline_repla
                                      "time_not_increasing")) == 0
     assert len(subscriber.attitude) == int(SECONDS / config.output.period_s)
     assert subscriber.status[-1]["health"] in ("ok", "no_input")
+    assert_loop_figures_whole(subscriber.status, n)
     assert_same_as_replay(subscriber.attitude, tmp_path / "recorded.csv", tmp_path, config)
     assert (tmp_path / "recorded.csv").stat().st_mode & 0o077 == 0   # owner-only recording
+
+
+def assert_loop_figures_whole(statuses: list[dict], samples_in: int) -> None:
+    """The statuses' ``loop`` figures: every read with samples in one period, each period's order p50 ≤ p99 ≤ max,
+    the largest since the start the largest of the periods."""
+    loops = [status["loop"] for status in statuses]
+    assert 0 < sum(loop["reads"] for loop in loops) <= samples_in
+    busy = [loop for loop in loops if loop["reads"]]
+    assert all(0.0 < loop["p50_ms"] <= loop["p99_ms"] <= loop["max_ms"] <= loop["max_ms_since_start"]
+               for loop in busy)
+    assert loops[-1]["max_ms_since_start"] == max(loop["max_ms"] for loop in busy) < 1000.0
+    assert all(loop["p50_ms"] is None for loop in loops if not loop["reads"])
 
 
 def test_zenoh_imu_input_gives_the_same_as_offline_replay(tmp_path):
@@ -59,6 +72,7 @@ def test_zenoh_imu_input_gives_the_same_as_offline_replay(tmp_path):
     run.stop()
     counters = subscriber.status[-1]["counters"]
     assert counters["samples_used"] == seq and counters["bad_messages"] == 1
+    assert_loop_figures_whole(subscriber.status, seq)
     assert_same_as_replay(subscriber.attitude, tmp_path / "recorded.csv", tmp_path, config)
 
 

@@ -34,7 +34,9 @@ STATUS = st.fixed_dictionaries(
     {"v": st.just(1) | VALUES, "health": st.sampled_from(messages.HEALTH) | VALUES,
      "counters": st.dictionaries(st.text(max_size=12) | st.sampled_from(["samples_used", "seq_gaps"]),
                                  st.integers(0, 2**64 - 1) | VALUES, max_size=5) | VALUES},
-    optional={key: VALUES for key in ("unit", "uptime_s", "phase", "t_last", "last_error")})
+    optional={**{key: VALUES for key in ("unit", "uptime_s", "phase", "t_last", "last_error")},
+              "loop": st.fixed_dictionaries({}, optional={key: NUMBER | VALUES for key in ("p99_ms", "max_ms")})
+              | VALUES})
 
 
 def drawn(view: UnitView) -> str:
@@ -68,7 +70,18 @@ def test_a_string_counter_and_a_number_as_last_error_show_what_is_valid() -> Non
                                          "roll_deg": -0.25, "heading_deg": 90.0, "heading_sigma_deg": 0.5,
                                          "level_sigma_deg": 0.01, "converged": "yes"}))
     shown = cells(view)
+    assert shown["loop p99 / max (ms)"] == "- / -"   # a status without the loop's figures
     assert shown["health"] == "degraded" and shown["last error"] == "?" and shown["frames"] == "1200"
     assert shown["drops and faults"] == "≥3"        # crc_errors and the bad message; seq_gaps unreadable
     assert shown["phase"] == "[/]fine" and shown["converged"] == "?" and shown["heading (°)"] == "90.0000"
     drawn(view)
+
+
+def test_the_loop_figures_show_what_is_a_number() -> None:
+    view = UnitView()
+    view.take("status", messages.pack({"v": 1, "health": "ok", "counters": {},
+                                       "loop": {"reads": 200, "p99_ms": 0.5, "max_ms": 1.25}}))
+    assert cells(view)["loop p99 / max (ms)"] == "0.50 / 1.25"
+    view.take("status", messages.pack({"v": 1, "health": "ok", "counters": {},
+                                       "loop": {"p99_ms": "x", "max_ms": None}}))
+    assert cells(view)["loop p99 / max (ms)"] == "? / -"
