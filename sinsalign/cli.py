@@ -285,14 +285,17 @@ def cmd_soak(args: argparse.Namespace) -> int:
     def show(s) -> None:
         p50, p99, most = percentiles_ms(s.latency_ms)
         print(f"  {s.hours:7.2f} h simulated, {s.wall_s:6.0f} s wall: daemon RSS {s.rss_mib:6.2f} MiB, frame → "
-              f"attitude p50 {p50:5.2f} ms p99 {p99:5.2f} ms max {most:6.2f} ms ({s.received}/{s.frames})", flush=True)
+              f"attitude p50 {p50:5.2f} ms p99 {p99:5.2f} ms max {most:6.2f} ms ({s.received}/{s.frames}); "
+              f"the daemon's own p99 {s.own_p99_ms:5.2f} ms max {s.own_max_ms:5.2f} ms", flush=True)
 
     samples = soak(args.hours, args.report_every, args.window, on_sample=show)
     p50, p99, most = percentiles_ms(np.concatenate([s.latency_ms for s in samples]))
     print(f"RSS growth from the first report to the last: {samples[-1].rss_mib - samples[0].rss_mib:+.2f} MiB; "
           f"frame → attitude over "
           f"every window: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {most:.2f} ms "
-          f"({sum(s.received for s in samples)}/{sum(s.frames for s in samples)} received)")
+          f"({sum(s.received for s in samples)}/{sum(s.frames for s in samples)} received); the daemon's own "
+          f"(read → published): p99 at most {max(s.own_p99_ms for s in samples):.2f} ms, max "
+          f"{max(s.own_max_ms for s in samples):.2f} ms")
     return 0
 
 
@@ -498,8 +501,10 @@ def build_parser() -> argparse.ArgumentParser:
                        "sample, and write HOURS of 200-Hz frames (static base with noise, generated on the fly): each "
                        "REPORT_EVERY simulated seconds flat out (as fast as the daemon reads them) but for the last "
                        "WINDOW seconds, which go at 200 Hz one frame at a time. Every report gives the daemon's RSS "
-                       "and the frame → attitude latency of the window's frames; the end, the RSS growth after the "
-                       "first report and the latency over every window. 24 h take about 12 min.")
+                       "and the frame → attitude latency of the window's frames, as a subscriber sees it, and the "
+                       "daemon's own share of it (read → published, from its statuses' loop figures: the rest is the "
+                       "machine's wake-ups and Zenoh); the end, the RSS growth after the first report and the latency "
+                       "over every window. 24 h take about 13 min.")
     p.add_argument("--hours", type=POSITIVE, default=24.0, help="hours of simulated data (default 24)")
     p.add_argument("--report-every", type=POSITIVE, default=3600.0, metavar="S",
                    help="simulated seconds per report (default 3600)")

@@ -41,11 +41,14 @@ class DaemonProcess:
         self.process = subprocess.Popen([sys.executable, "-m", "sinsalign", "serve", "--config", str(config_path)],
                                         stderr=subprocess.DEVNULL)
         self.arrivals: dict[float, float] = {}   # attitude t (s, rounded) → monotonic arrival time
+        self.loops: list[dict] = []   # the statuses' loop figures (the daemon's own latency) while watching
         self.count = 0
         self.watching = True   # keep each attitude's arrival time (False: only count, as when written flat out)
         time.sleep(1.5)   # imports, the port and the session
         self.session = open_session(ZenohConfig(connect=(f"tcp/127.0.0.1:{self.port}",)))
-        self._sub = self.session.declare_subscriber(UnitKeys("sinsalign", "bench").attitude, self._on_attitude)
+        keys = UnitKeys("sinsalign", "bench")
+        self._subs = (self.session.declare_subscriber(keys.attitude, self._on_attitude),
+                      self.session.declare_subscriber(keys.status, self._on_status))
         time.sleep(0.5)
 
     def _on_attitude(self, sample: zenoh.Sample) -> None:
@@ -54,14 +57,20 @@ class DaemonProcess:
         if self.watching:
             self.arrivals[round(messages.decode_attitude(sample.payload.to_bytes())["t"], 6)] = arrival
 
+    def _on_status(self, sample: zenoh.Sample) -> None:
+        if self.watching:
+            self.loops.append(messages.decode_status(sample.payload.to_bytes())["loop"])
+
     def play_paced(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int = 0,
                    settle_s: float = 0.2) -> np.ndarray:
         """Write samples (t (N,) s, Δθ, Δv (N, 3)) as frames numbered from ``seq`` at their own rate, one frame per
         write as a real line delivers them, stamping each write; after ``settle_s`` for the last attitudes, the
-        frame → attitude latency (ms) of each frame whose attitude arrived (the daemon publishing every sample)."""
+        frame → attitude latency (ms) of each frame whose attitude arrived (the daemon publishing every sample). The
+        statuses' ``loop`` figures published meanwhile are in :attr:`loops`."""
         player = FramePlayer(self.pty.master_fd, 1.0, seq=seq)
         stamps = np.empty(len(t))
         self.arrivals.clear()
+        self.loops.clear()
         self.watching = True
         gc.collect()
         gc.freeze()   # this process's collector must not delay the subscriber's arrival stamps
@@ -97,7 +106,8 @@ class DaemonProcess:
         return self
 
     def __exit__(self, *exc: object) -> None:
-        self._sub.undeclare()
+        for sub in self._subs:
+            sub.undeclare()
         self.session.close()
         self.process.terminate()
         self.process.wait(timeout=10)

@@ -5,7 +5,8 @@ most work a sample can ask of it. Frames of a static base with sensor noise are 
 interval of simulated time is written flat out (the pty's back-pressure paces the writer to the daemon) but for its
 last ``window_s``, which is written at the IMU's own rate, one frame at a time, as a real 200-Hz line delivers it:
 each of those frames' write time pairs with its attitude's arrival at a separate Zenoh subscriber (frame → attitude
-latency), and the daemon's RSS is read after the window. Growth in memory or latency over the day shows as a trend;
+latency), the daemon's statuses say its own share of it (read → published: the ``loop`` figures), and the daemon's RSS
+is read after the window. Growth in memory or latency over the day shows as a trend;
 the day itself takes minutes.
 """
 from __future__ import annotations
@@ -24,6 +25,11 @@ from .virtual_imu import write_all
 
 FLAT_OUT_PIECE_S = 10.0
 """Simulated seconds of frames per write while flat out."""
+QUIET_S = 1.5
+"""Idle line between the flat-out frames and the window: longer than the daemon's status period (1 s), so that the
+statuses published in the window count the window's reads only."""
+SETTLE_S = 1.2
+"""After the window's last frame: its attitude, and the status of the period that holds it."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -35,6 +41,8 @@ class SoakSample:
     rss_mib: float          # the daemon's resident memory after the window
     latency_ms: np.ndarray  # frame written → attitude received, each frame of the window that got one (ms)
     frames: int             # frames in the window
+    own_p99_ms: float       # the daemon's own read → published time: the largest of its status periods' p99 (ms)
+    own_max_ms: float       # and its largest (ms)
 
     @property
     def received(self) -> int:
@@ -75,12 +83,14 @@ def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 
                 count = min(per_piece, window_start - written)
                 write_all(daemon.pty.master_fd, encode_imu_frames(written, *frames(written, count)), timeout_s=30.0)
                 written += count
-            time.sleep(0.5)   # the flat-out frames taken: the window's frames meet an idle line, as at 200 Hz
-            latency = daemon.play_paced(*frames(written, per_window), seq=written)
+            time.sleep(QUIET_S)   # the flat-out frames taken: the window's frames meet an idle line, as at 200 Hz
+            latency = daemon.play_paced(*frames(written, per_window), seq=written, settle_s=SETTLE_S)
             daemon.watching = False
             written += per_window
+            own = [loop for loop in daemon.loops if loop["reads"]]
             sample = SoakSample(written * dt / 3600.0, time.monotonic() - start, daemon.rss_mib(), latency,
-                                per_window)
+                                per_window, max((loop["p99_ms"] for loop in own), default=float("nan")),
+                                max((loop["max_ms"] for loop in own), default=float("nan")))
             samples.append(sample)
             if on_sample:
                 on_sample(sample)
