@@ -27,9 +27,12 @@ from .virtual_imu import FramePlayer, PtyPair
 
 
 class DaemonProcess:
-    """Start with ``with DaemonProcess(site, rate_hz, output_period_s) as d:``; write frames to ``d.pty``."""
+    """Start with ``with DaemonProcess(site, rate_hz, output_period_s) as d:``; write frames to ``d.pty``.
 
-    def __init__(self, site: Site, rate_hz: float, output_period_s: float) -> None:
+    ``relay``: the null relay (tools/null_relay.py) on the same configuration instead of the daemon, the floor of its
+    latency on this machine."""
+
+    def __init__(self, site: Site, rate_hz: float, output_period_s: float, relay: bool = False) -> None:
         self.port = free_loopback_port()
         self.pty = PtyPair()
         self._tmp = tempfile.TemporaryDirectory()
@@ -38,8 +41,9 @@ class DaemonProcess:
             f'[site]\nlat_deg = {site.lat / DEG}\n[imu]\nrate_hz = {rate_hz}\n'
             f'[serial]\npath = "{self.pty.port_name}"\n[zenoh]\nlisten = ["tcp/127.0.0.1:{self.port}"]\n'
             f'unit = "bench"\n[output]\nperiod_s = {output_period_s}\n')
-        self.process = subprocess.Popen([sys.executable, "-m", "sinsalign", "serve", "--config", str(config_path)],
-                                        stderr=subprocess.DEVNULL)
+        command = ["sinsalign.tools.null_relay", str(config_path)] if relay else \
+            ["sinsalign", "serve", "--config", str(config_path)]
+        self.process = subprocess.Popen([sys.executable, "-m", *command], stderr=subprocess.DEVNULL)
         self.arrivals: dict[float, float] = {}   # attitude t (s, rounded) → monotonic arrival time
         self.loops: list[dict] = []   # the statuses' loop figures (the daemon's own latency) while watching
         self.count = 0
