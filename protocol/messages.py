@@ -11,7 +11,7 @@ types and raise :class:`MessageError` with a reason; they never execute or evalu
   roll_deg, heading_deg, heading_sigma_deg, level_sigma_deg, converged, rho, trace_P, n_obs); in
   transfer alignment also mount_q [4] (C_bs^bm, scalar first) and mount_sigma_deg.
 - status out (``…/status``, 1 Hz): v, unit, uptime_s, health, phase, t_last, last_error, counters {name: int},
-  loop {reads, p50_ms, p99_ms, max_ms, max_ms_since_start} (the daemon's own read → published time:
+  loop {reads, p50_ms, p99_ms, max_ms, max_cpu_ms, max_ms_since_start} (the daemon's own read → published time:
   service/loop_timing.py).
 """
 from __future__ import annotations

@@ -86,6 +86,7 @@ class Daemon:
                                   self._error)
         self._next_status = time.monotonic()
         self.loop_timing = LoopTiming()
+        self._read_cpu_s = 0.0
 
     @property
     def counters(self) -> SampleCounters:
@@ -94,7 +95,8 @@ class Daemon:
 
     # ---- inputs -------------------------------------------------------------------------
     def _read_inputs(self) -> tuple[np.ndarray, float]:
-        """Decoded samples from every input, in arrival order, and when the first read returned (monotonic s).
+        """Decoded samples from every input, in arrival order, and when the first read returned (monotonic s; the
+        loop thread's CPU time then in :attr:`_read_cpu_s`).
 
         The serial port first (its read waits up to 20 ms for data), then the Zenoh IMU inbox,
         drained without waiting when a serial port paces the loop, or waited on for up to 20 ms
@@ -106,14 +108,14 @@ class Daemon:
         receiver = self.gnss_serial.read(wait=False) if self.gnss_serial is not None else b""
         if self.serial is not None:
             data = self.serial.read()
-            read_at = time.monotonic()
+            read_at, self._read_cpu_s = time.monotonic(), time.thread_time()
             serial = self.ingest.decode_serial(data, read_at)
         else:
             serial = None
         zenoh_rows = self.inputs.imu_samples(0.0 if serial is not None else 0.02)
         arrival_s = time.monotonic()
         if serial is None:
-            read_at = arrival_s
+            read_at, self._read_cpu_s = arrival_s, time.thread_time()
         self.ingest.arrival_clock.observe(zenoh_rows[:, 0], arrival_s)
         if receiver:
             self.ingest.decode_receiver(receiver, arrival_s)
@@ -130,7 +132,7 @@ class Daemon:
             output.records(records)
         if len(samples):
             self._last_input = now = time.monotonic()
-            self.loop_timing.add(now - read_at)
+            self.loop_timing.add(now - read_at, time.thread_time() - self._read_cpu_s)
         self.ingest.settle()   # the control step the records did not wait for
         if records:
             self.last_record = records[-1]

@@ -283,21 +283,23 @@ def cmd_soak(args: argparse.Namespace) -> int:
     print(f"soak: {args.hours:g} h of 200-Hz frames through {through} on a pty, attitude for every sample: "
           f"flat out, the last {args.window:g} s of every {args.report_every:g} s at 200 Hz", file=sys.stderr)
 
-    def own(p99_ms: float, max_ms: float) -> str:
-        return "" if args.floor else f"; the daemon's own (read → published) p99 {p99_ms:.2f} ms, max {max_ms:.2f} ms"
+    def own(reports: list) -> str:
+        """The daemon's own figures over ``reports`` (the worst of each), none for the null relay."""
+        if args.floor:
+            return ""
+        return (f"; the daemon's own (read → published) p99 {max(r.own_p99_ms for r in reports):.2f} ms, max "
+                f"{max(r.own_max_ms for r in reports):.2f} ms (CPU {max(r.own_max_cpu_ms for r in reports):.2f} ms)")
 
     def show(s) -> None:
         p50, p99, most = percentiles_ms(s.latency_ms)
         print(f"  {s.hours:7.2f} h simulated, {s.wall_s:6.0f} s wall: RSS {s.rss_mib:6.2f} MiB, frame → attitude "
-              f"p50 {p50:5.2f} ms p99 {p99:5.2f} ms max {most:6.2f} ms ({s.received}/{s.frames})"
-              f"{own(s.own_p99_ms, s.own_max_ms)}", flush=True)
+              f"p50 {p50:5.2f} ms p99 {p99:5.2f} ms max {most:6.2f} ms ({s.received}/{s.frames}){own([s])}", flush=True)
 
     samples = soak(args.hours, args.report_every, args.window, on_sample=show, floor=args.floor)
     p50, p99, most = percentiles_ms(np.concatenate([s.latency_ms for s in samples]))
     print(f"RSS growth from the first report to the last: {samples[-1].rss_mib - samples[0].rss_mib:+.2f} MiB; "
           f"frame → attitude over every window: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {most:.2f} ms "
-          f"({sum(s.received for s in samples)}/{sum(s.frames for s in samples)} received)"
-          f"{own(max(s.own_p99_ms for s in samples), max(s.own_max_ms for s in samples))}")
+          f"({sum(s.received for s in samples)}/{sum(s.frames for s in samples)} received){own(samples)}")
     return 0
 
 

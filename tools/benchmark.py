@@ -49,6 +49,23 @@ def rss_mib() -> float:
     return pages * resource.getpagesize() / 2**20
 
 
+YARDSTICK_ADDITIONS = 5_000_000
+
+
+def bench_yardstick(repeat: int) -> list[float]:
+    """Seconds of a fixed piece of interpreter work (:data:`YARDSTICK_ADDITIONS` additions in a Python loop),
+    ``repeat`` times: the machine's speed at the moment, to read the other rows by (a virtual machine's neighbours
+    slow it down without showing in its load)."""
+    seconds = []
+    for _ in range(repeat):
+        start = time.perf_counter()
+        total = 0
+        for k in range(YARDSTICK_ADDITIONS):
+            total += k
+        seconds.append(time.perf_counter() - start)
+    return seconds
+
+
 def bench_pipeline(duration_s: float, repeat: int, config: Config | None = None,
                    scenario_name: str = "seed000-swing") -> list[float]:
     """Frames/s of the pipeline alone (``config``: the default configuration if None) over ``duration_s`` of a
@@ -289,6 +306,9 @@ def report(seconds: float, repeat: int, live: bool, live_seconds: float, stream_
     rows = Rows()
     with tempfile.TemporaryDirectory() as tmp, Progress(transient=True) as bar:
         task = bar.add_task("benchmark", total=None)
+        yardstick = rows.measure(lambda: bench_yardstick(repeat))
+        rows.row(f"yardstick: {YARDSTICK_ADDITIONS / 1e6:g} M additions in a Python loop (the machine's speed now)",
+                 f"{min(yardstick) * 1e3:.0f} ms", f"{median(yardstick) * 1e3:.0f} ms")
         for length in dict.fromkeys((seconds, long_seconds)):
             csv, binary = _logs(length, Path(tmp))
             rows.row(f"`replay`, {length:g}-s 200-Hz log, whole process, default",

@@ -43,6 +43,7 @@ class SoakSample:
     frames: int             # frames in the window
     own_p99_ms: float       # the daemon's own read → published time: the largest of its status periods' p99 (ms)
     own_max_ms: float       # and its largest (ms)
+    own_max_cpu_ms: float   # the largest CPU time of the daemon's loop thread on one read (ms)
 
     @property
     def received(self) -> int:
@@ -91,7 +92,8 @@ def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 
             own = [loop for loop in daemon.loops if loop["reads"]]
             sample = SoakSample(written * dt / 3600.0, time.monotonic() - start, daemon.rss_mib(), latency,
                                 per_window, max((loop["p99_ms"] for loop in own), default=float("nan")),
-                                max((loop["max_ms"] for loop in own), default=float("nan")))
+                                max((loop["max_ms"] for loop in own), default=float("nan")),
+                                max((loop["max_cpu_ms"] for loop in own), default=float("nan")))
             samples.append(sample)
             if on_sample:
                 on_sample(sample)

@@ -51,6 +51,8 @@ def assert_loop_figures_whole(statuses: list[dict], samples_in: int) -> None:
     busy = [loop for loop in loops if loop["reads"]]
     assert all(0.0 < loop["p50_ms"] <= loop["p99_ms"] <= loop["max_ms"] <= loop["max_ms_since_start"]
                for loop in busy)
+    # a read's CPU time is within its time (two clocks: 10 us of slack)
+    assert all(0.0 < loop["max_cpu_ms"] <= loop["max_ms"] + 0.01 for loop in busy)
     assert loops[-1]["max_ms_since_start"] == max(loop["max_ms"] for loop in busy) < 1000.0
     assert all(loop["p50_ms"] is None for loop in loops if not loop["reads"])
 
@@ -172,3 +174,17 @@ def test_soak_an_accelerated_hour_keeps_memory_and_latency_flat():
     assert samples[-1].rss_mib - samples[1].rss_mib < 1.0
     p99 = [percentiles_ms(s.latency_ms)[1] for s in samples]
     assert p99[-1] < 3 * max(p99[1], 2.0)
+
+
+def test_the_null_relay_returns_every_frame_s_time_as_an_attitude_message():
+    """The soak's floor (``soak --floor``): each frame played through the relay comes back on the attitude key,
+    stamped with its own time, and no status is published (no own figures to mistake for the daemon's)."""
+    from sinsalign.tools.daemon_process import DaemonProcess
+    from sinsalign.tools.sim.scenarios import get_scenario
+    scenario = get_scenario("static")
+    dt = 1.0 / scenario.rate_hz
+    t = np.arange(1, 201) * dt
+    with DaemonProcess(scenario.site, scenario.rate_hz, dt, relay=True) as relay:
+        latency_ms = relay.play_paced(t, np.zeros((len(t), 3)), np.zeros((len(t), 3)), settle_s=1.2)
+        assert sorted(relay.arrivals) == list(np.round(t, 6)) and relay.loops == []
+    assert len(latency_ms) == len(t) and (latency_ms > 0.0).all()
