@@ -89,6 +89,14 @@ class DaemonProcess:
         return np.array([self.arrivals[key] - stamp for key, stamp in zip(keys, stamps, strict=True)
                          if key in self.arrivals]) * 1e3
 
+    def own_figures(self) -> tuple[float, float, float]:
+        """The daemon's own read → published time over the statuses of the last :meth:`play_paced` (ms): the largest
+        p99 of their periods, the largest time and the largest CPU time of one read (NaN without any read)."""
+        busy = [loop for loop in self.loops if loop["reads"]]
+        p99, most, cpu = (max((loop[key] for loop in busy), default=float("nan"))
+                          for key in ("p99_ms", "max_ms", "max_cpu_ms"))
+        return p99, most, cpu
+
     def samples_in(self) -> int:
         """The samples the daemon has decoded from the pty so far (its state query's ``samples_in_serial``)."""
         for reply in self.session.get(UnitKeys("sinsalign", "bench").state, timeout=2.0):

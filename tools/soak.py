@@ -89,11 +89,8 @@ def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 
             latency = daemon.play_paced(*frames(written, per_window), seq=written, settle_s=SETTLE_S)
             daemon.watching = False
             written += per_window
-            own = [loop for loop in daemon.loops if loop["reads"]]
             sample = SoakSample(written * dt / 3600.0, time.monotonic() - start, daemon.rss_mib(), latency,
-                                per_window, max((loop["p99_ms"] for loop in own), default=float("nan")),
-                                max((loop["max_ms"] for loop in own), default=float("nan")),
-                                max((loop["max_cpu_ms"] for loop in own), default=float("nan")))
+                                per_window, *daemon.own_figures())
             samples.append(sample)
             if on_sample:
                 on_sample(sample)

@@ -188,3 +188,15 @@ def test_the_null_relay_returns_every_frame_s_time_as_an_attitude_message():
         latency_ms = relay.play_paced(t, np.zeros((len(t), 3)), np.zeros((len(t), 3)), settle_s=1.2)
         assert sorted(relay.arrivals) == list(np.round(t, 6)) and relay.loops == []
     assert len(latency_ms) == len(t) and (latency_ms > 0.0).all()
+
+
+def test_the_benchmark_s_live_rows_measure_a_daemon_that_got_every_frame():
+    """``benchmark --live``'s daemon rows on a short run: every paced frame's attitude arrived, the daemon's own share
+    is in order (p99 of a period ≤ its max; CPU within the time), and the flat-out frames were all taken."""
+    from sinsalign.tools.benchmark import bench_live
+    live = bench_live(seconds=2.0, flat_out_s=0.5)
+    assert live.received == live.frames == 400
+    assert 0.0 < live.latency_p50_ms <= live.latency_p99_ms <= live.latency_max_ms
+    p99_ms, max_ms, cpu_ms = live.own_ms
+    assert 0.0 < p99_ms <= max_ms and 0.0 < cpu_ms <= max_ms + 0.01
+    assert live.max_ingest_frames_s > 0.0 and 0.0 < live.cpu_share < 2.0
