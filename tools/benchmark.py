@@ -54,8 +54,9 @@ YARDSTICK_ADDITIONS = 5_000_000
 
 def bench_yardstick(repeat: int) -> list[float]:
     """Seconds of a fixed piece of interpreter work (:data:`YARDSTICK_ADDITIONS` additions in a Python loop),
-    ``repeat`` times: the machine's speed at the moment, to read the other rows by (a virtual machine's neighbours
-    slow it down without showing in its load)."""
+    ``repeat`` times: one core's speed at the moment, to read the other rows by (a virtual machine's neighbours slow it
+    down without showing in its load). It lives in the processor's first cache: a replay slower at the same yardstick
+    lost the memory's or the second core's time to the neighbours."""
     seconds = []
     for _ in range(repeat):
         start = time.perf_counter()
@@ -309,7 +310,7 @@ def report(seconds: float, repeat: int, live: bool, live_seconds: float, stream_
     with tempfile.TemporaryDirectory() as tmp, Progress(transient=True) as bar:
         task = bar.add_task("benchmark", total=None)
         yardstick = rows.measure(lambda: bench_yardstick(repeat))
-        rows.row(f"yardstick: {YARDSTICK_ADDITIONS / 1e6:g} M additions in a Python loop (the machine's speed now)",
+        rows.row(f"yardstick: {YARDSTICK_ADDITIONS / 1e6:g} M additions in a Python loop (one core's speed now)",
                  f"{min(yardstick) * 1e3:.0f} ms", f"{median(yardstick) * 1e3:.0f} ms")
         for length in dict.fromkeys((seconds, long_seconds)):
             csv, binary = _logs(length, Path(tmp))
