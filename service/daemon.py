@@ -86,7 +86,6 @@ class Daemon:
                                   self._error)
         self._next_status = time.monotonic()
         self.loop_timing = LoopTiming()
-        self._read_cpu_s = 0.0
 
     @property
     def counters(self) -> SampleCounters:
@@ -94,9 +93,9 @@ class Daemon:
         return self.ingest.counters
 
     # ---- inputs -------------------------------------------------------------------------
-    def _read_inputs(self) -> tuple[np.ndarray, float]:
-        """Decoded samples from every input, in arrival order, and when the first read returned (monotonic s; the
-        loop thread's CPU time then in :attr:`_read_cpu_s`).
+    def _read_inputs(self) -> tuple[np.ndarray, tuple[float, float]]:
+        """Decoded samples from every input, in arrival order, and when the first read returned: (monotonic s, the
+        loop thread's CPU time s), the start of the daemon's own share of their latency (:class:`LoopTiming`).
 
         The serial port first (its read waits up to 20 ms for data), then the Zenoh IMU inbox,
         drained without waiting when a serial port paces the loop, or waited on for up to 20 ms
@@ -108,14 +107,14 @@ class Daemon:
         receiver = self.gnss_serial.read(wait=False) if self.gnss_serial is not None else b""
         if self.serial is not None:
             data = self.serial.read()
-            read_at, self._read_cpu_s = time.monotonic(), time.thread_time()
-            serial = self.ingest.decode_serial(data, read_at)
+            read_at = time.monotonic(), time.thread_time()
+            serial = self.ingest.decode_serial(data, read_at[0])
         else:
             serial = None
         zenoh_rows = self.inputs.imu_samples(0.0 if serial is not None else 0.02)
         arrival_s = time.monotonic()
         if serial is None:
-            read_at, self._read_cpu_s = arrival_s, time.thread_time()
+            read_at = arrival_s, time.thread_time()
         self.ingest.arrival_clock.observe(zenoh_rows[:, 0], arrival_s)
         if receiver:
             self.ingest.decode_receiver(receiver, arrival_s)
@@ -126,13 +125,13 @@ class Daemon:
     # ---- loop ---------------------------------------------------------------------------
     def step(self) -> list[ResultRecord]:
         """One pass of the loop: read, check, align, publish; returns the records published."""
-        samples, read_at = self._read_inputs()
+        samples, (read_at, read_cpu_s) = self._read_inputs()
         records = self.ingest.feed_samples(samples, self.inputs.aiding_epochs(), defer_control=True)
         for output in self._record_outputs:
             output.records(records)
         if len(samples):
             self._last_input = now = time.monotonic()
-            self.loop_timing.add(now - read_at, time.thread_time() - self._read_cpu_s)
+            self.loop_timing.add(now - read_at, time.thread_time() - read_cpu_s)
         self.ingest.settle()   # the control step the records did not wait for
         if records:
             self.last_record = records[-1]
