@@ -2,23 +2,24 @@
 
 ``python -m sinsalign.tools.null_relay CONFIG`` reads the serial port of a ``sinsalign serve`` configuration as the
 daemon reads it (the same port class, the same frame decoder) and publishes, for each IMU frame, an attitude message
-of the same size and encoding on the same key: a fixed attitude stamped with the frame's time. A subscriber's frame →
-attitude latency through it is the floor of the daemon's: the operating system's wake-ups of both processes and of
-Zenoh's threads, the serial read, the decoding and the puts, without the checks, the alignment and the records.
+through the daemon's own outputs (the same key, encoding and put): a fixed attitude stamped with the frame's time. A
+subscriber's frame → attitude latency through it is the floor of the daemon's: the operating system's wake-ups of both
+processes and of Zenoh's threads, the serial read, the decoding and the puts, without the checks, the alignment and the
+records.
 """
 from __future__ import annotations
 
 import signal
 import sys
+import threading
 from dataclasses import replace
 
-from sinsalign.protocol import messages
 from sinsalign.protocol.keys import UnitKeys
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.protocol.serial_frame import FrameDecoder
 from sinsalign.service.config import load_config
 from sinsalign.service.serial_port import SerialPort
-from sinsalign.service.zenoh_outputs import MSGPACK
+from sinsalign.service.zenoh_outputs import ZenohOutputs
 from sinsalign.service.zenoh_session import open_session
 
 FIXED = ResultRecord(t=0.0, phase="coarse", q=(1.0, 0.0, 0.0, 0.0), pitch_deg=0.0, roll_deg=0.0, heading_deg=0.0,
@@ -26,21 +27,19 @@ FIXED = ResultRecord(t=0.0, phase="coarse", q=(1.0, 0.0, 0.0, 0.0), pitch_deg=0.
 
 
 def relay(config_path: str) -> None:
-    """Relay frame times to attitude messages until SIGTERM or SIGINT."""
+    """Relay frame times to attitude messages, through the daemon's own outputs, until SIGTERM or SIGINT."""
     config = load_config(config_path)
-    keys = UnitKeys(config.zenoh.prefix, config.zenoh.unit)
-    running = [True]
+    stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: running.clear())
+        signal.signal(sig, lambda *_: stop.set())
     port = SerialPort(config.serial.path, config.serial.baud)
     decoder = FrameDecoder()
     with open_session(config.zenoh) as session:
-        publisher = session.declare_publisher(keys.attitude, encoding=MSGPACK)
-        while running:
+        outputs = ZenohOutputs(session, UnitKeys(config.zenoh.prefix, config.zenoh.unit), dict)
+        while not stop.is_set():
             rows, _ = decoder.feed_rows(port.read())
-            for t in rows[:, 0].tolist():
-                publisher.put(messages.pack(messages.attitude_message(keys.unit, replace(FIXED, t=t))))
-        publisher.undeclare()
+            outputs.records([replace(FIXED, t=t) for t in rows[:, 0].tolist()])
+        outputs.close()
     port.close()
 
 
