@@ -14,7 +14,7 @@ exact path that names the file, line and column.
 from libc.math cimport isfinite
 from libc.stdint cimport int64_t, uint64_t
 from libc.stdlib cimport strtod
-from libc.string cimport memchr, memcpy
+from libc.string cimport memchr, memcmp, memcpy
 from cpython.unicode cimport PyUnicode_AsUTF8AndSize
 
 import numpy as np
@@ -169,7 +169,7 @@ cdef Py_ssize_t _number(const char* s, Py_ssize_t p, double* value) noexcept nog
 
 
 cdef Py_ssize_t _parse(const char* s, Py_ssize_t n, int ncols, Py_ssize_t max_line_chars,
-                       double* o) noexcept nogil:
+                       const char* marker, Py_ssize_t marker_len, double* o) noexcept nogil:
     """The rows of ``s[:n]`` into ``o`` (row-major, ``ncols`` a row, room for every line): how many, or -1 where the
     text holds anything beyond plain rows (:func:`parse_rows`)."""
     cdef Py_ssize_t p = 0, end, line_start = 0, row = 0
@@ -185,6 +185,8 @@ cdef Py_ssize_t _parse(const char* s, Py_ssize_t n, int ncols, Py_ssize_t max_li
             line_start = p
             continue
         if s[p] == b'#':
+            if marker_len and p == line_start and n - p >= marker_len and memcmp(s + p, marker, marker_len) == 0:
+                return -1
             while p < n and s[p] != b'\n':
                 p += 1
             p += 1
@@ -222,21 +224,24 @@ cdef Py_ssize_t _parse(const char* s, Py_ssize_t n, int ncols, Py_ssize_t max_li
     return row
 
 
-def parse_rows(str text, int ncols, Py_ssize_t max_line_chars):
+def parse_rows(str text, int ncols, Py_ssize_t max_line_chars, bytes marker=b""):
     """The data rows of ``text`` (lines, each ended by a newline) as an (N, ncols) float64 array, every value
-    finite; None where the chunk holds anything beyond plain rows, blank lines and comments in ASCII, or a line of
-    more than ``max_line_chars`` characters (the newline included). The pass runs without the interpreter's lock, so
+    finite; None where the chunk holds anything beyond plain rows, blank lines and comments in ASCII, a line of
+    more than ``max_line_chars`` characters (the newline included), or a line that begins with ``marker`` (a
+    comment the caller acts on: the log's restart marker). The pass runs without the interpreter's lock, so
     a reader thread parses while another runs the alignment."""
     if not text.isascii():
         return None
     cdef Py_ssize_t n, rows, lines
     cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
+    cdef const char* m = marker
+    cdef Py_ssize_t marker_len = len(marker)
     with nogil:
         lines = _newlines(s, n)
     out = np.empty((lines + 1, ncols))
     cdef double[:, ::1] o = out
     with nogil:
-        rows = _parse(s, n, ncols, max_line_chars, &o[0, 0])
+        rows = _parse(s, n, ncols, max_line_chars, m, marker_len, &o[0, 0])
     return None if rows < 0 else out[:rows]
 
 

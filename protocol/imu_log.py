@@ -311,6 +311,7 @@ def _line_of(lines: list[str], first_line: int, row: int) -> int:
 RESTART_MARKER = "# restart:"
 """A comment line of a daemon's recording: the alignment started over here (the reason follows), so a replay must
 too; the samples after it may begin a new time base (a sensor restarted its clock)."""
+MARKER_BYTES = RESTART_MARKER.encode()
 
 
 def _pieces(lines: list[str], first_line: int) -> list[tuple[str | None, list[str], int]]:
@@ -383,10 +384,9 @@ def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str
     line_no, t_last = first_line, -math.inf
     ranges = _column_ranges(limits, columns)
     for text in _whole_lines(stream):
-        # a piece without its line end (the file cut inside its last line, or the start of a line too long) goes to
-        # the line reader, which names that line
-        whole = text.endswith("\n") and RESTART_MARKER not in text
-        block = parse_rows(text, len(columns), MAX_LINE_CHARS) if whole else None
+        # a piece without its line end (the file cut inside its last line, or the start of a line too long) or with
+        # a marker goes to the line reader, which names that line
+        block = parse_rows(text, len(columns), MAX_LINE_CHARS, MARKER_BYTES) if text.endswith("\n") else None
         if block is None or not _acceptable(block, columns, limits, ranges, increasing, t_last):
             pieces = _line_segments(io.StringIO(text), path, line_no, columns, chunk_rows, increasing, limits, t_last)
         else:

@@ -116,3 +116,15 @@ def test_the_compiled_range_check_is_the_numpy_one(rows, increasing, t_last):
     open_low = np.array([r.open_low for r in RANGES], dtype=np.uint8)
     open_high = np.array([r.open_high for r in RANGES], dtype=np.uint8)
     assert rows_within(block, low, high, open_low, open_high, increasing, t_last) == want
+
+
+@pytest.mark.parametrize(("text", "refused"), [("1,2,3\n# restart: sensor\n4,5,6\n", True),
+                                               ("# restart:\n", True),
+                                               ("1,2,3\n # restart: indented, a comment\n", False),
+                                               ("1,2,3\n# a comment # restart: inside\n", False),
+                                               ("1,2,3\n# restart\n", False)])
+def test_a_line_that_begins_with_the_marker_refuses_the_piece(text, refused):
+    """The log's restart marker is a comment the reader acts on: the piece goes to the line reader, which cuts there;
+    the same words anywhere but at a line's start are a plain comment."""
+    assert (parse_rows(text, NCOLS, 4096, b"# restart:") is None) == refused
+    assert parse_rows(text, NCOLS, 4096) is not None
