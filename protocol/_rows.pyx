@@ -188,6 +188,8 @@ cdef Py_ssize_t _parse(const char* s, Py_ssize_t n, int ncols, Py_ssize_t max_li
             if marker_len and p == line_start and n - p >= marker_len and memcmp(s + p, marker, marker_len) == 0:
                 return -1
             while p < n and s[p] != b'\n':
+                if s[p] & 0x80 or s[p] == b'\r':   # a buffer's bytes: a comment in ASCII, its line one line
+                    return -1
                 p += 1
             p += 1
             if p - line_start > max_line_chars:
@@ -224,16 +226,27 @@ cdef Py_ssize_t _parse(const char* s, Py_ssize_t n, int ncols, Py_ssize_t max_li
     return row
 
 
-def parse_rows(str text, int ncols, Py_ssize_t max_line_chars, bytes marker=b""):
+def parse_rows(text, int ncols, Py_ssize_t max_line_chars, bytes marker=b""):
     """The data rows of ``text`` (lines, each ended by a newline) as an (N, ncols) float64 array, every value
     finite; None where the chunk holds anything beyond plain rows, blank lines and comments in ASCII, a line of
-    more than ``max_line_chars`` characters (the newline included), or a line that begins with ``marker`` (a
-    comment the caller acts on: the log's restart marker). The pass runs without the interpreter's lock, so
-    a reader thread parses while another runs the alignment."""
-    if not text.isascii():
-        return None
+    more than ``max_line_chars`` characters (the newline included), a line that begins with ``marker`` (a comment
+    the caller acts on: the log's restart marker), or a last line without its newline (a file cut inside it).
+    ``text`` is a str, or the bytes of a piece of text in any buffer (a view of a read: :func:`plain_text` says
+    where its bytes are their text). The pass runs without the interpreter's lock, so a reader thread parses while
+    another runs the alignment."""
+    cdef const unsigned char[::1] data
+    cdef const char* s
     cdef Py_ssize_t n, rows, lines
-    cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
+    if isinstance(text, str):
+        if not text.isascii():
+            return None
+        s = PyUnicode_AsUTF8AndSize(text, &n)   # an ASCII str's own bytes, not a copy
+    else:
+        data = text
+        n = data.shape[0]
+        s = _start(data)
+    if n and s[n - 1] != b'\n':   # also keeps the parse, which reads the character after a number, in the buffer
+        return None
     cdef const char* m = marker
     cdef Py_ssize_t marker_len = len(marker)
     with nogil:
@@ -243,6 +256,14 @@ def parse_rows(str text, int ncols, Py_ssize_t max_line_chars, bytes marker=b"")
     with nogil:
         rows = _parse(s, n, ncols, max_line_chars, m, marker_len, &o[0, 0])
     return None if rows < 0 else out[:rows]
+
+
+cdef const char* _EMPTY = b""
+
+
+cdef inline const char* _start(const unsigned char[::1] data) noexcept:
+    """The first byte of a buffer, a valid address when it has none."""
+    return <const char*>&data[0] if data.shape[0] else _EMPTY
 
 
 cdef Py_ssize_t _newlines(const char* s, Py_ssize_t n) noexcept nogil:
@@ -256,15 +277,40 @@ cdef Py_ssize_t _newlines(const char* s, Py_ssize_t n) noexcept nogil:
     return count
 
 
-def newlines(str text):
-    """``text.count("\n")``, counted without the interpreter's lock where the text is ASCII."""
-    if not text.isascii():
-        return text.count("\n")
+def newlines(text):
+    """``text.count("\n")`` of a str, or the newline bytes of a buffer, counted without the interpreter's lock where
+    the text is ASCII."""
+    cdef const unsigned char[::1] data
+    cdef const char* s
     cdef Py_ssize_t n, count
-    cdef const char* s = PyUnicode_AsUTF8AndSize(text, &n)
+    if isinstance(text, str):
+        if not text.isascii():
+            return text.count("\n")
+        s = PyUnicode_AsUTF8AndSize(text, &n)
+    else:
+        data = text
+        n = data.shape[0]
+        s = _start(data)
     with nogil:
         count = _newlines(s, n)
     return count
+
+
+def plain_text(const unsigned char[::1] data):
+    """Whether the bytes of ``data`` are ASCII without a carriage return: then they are their own text, line for
+    line, as a text-mode read (UTF-8, universal newlines) gives it. Without the interpreter's lock."""
+    cdef const char* s = _start(data)
+    cdef Py_ssize_t i, n = data.shape[0], words = data.shape[0] // 8
+    cdef uint64_t word, seen = 0
+    cdef bint plain
+    with nogil:
+        for i in range(words):   # the high bits of eight bytes at a time
+            memcpy(&word, s + 8 * i, 8)
+            seen |= word
+        for i in range(8 * words, n):
+            seen |= <unsigned char>s[i]
+        plain = (seen & 0x8080808080808080ULL) == 0 and memchr(s, b'\r', n) == NULL
+    return plain
 
 
 def rows_within(const double[:, ::1] block, const double[::1] low, const double[::1] high,

@@ -6,8 +6,9 @@ acc_vrw_ug_rthz), then the header ``t,dthx,dthy,dthz,dvx,dvy,dvz``, then one row
 t in s at the end of the sample interval, gyro angle increments in rad, velocity increments in
 m/s, body axes Right-Front-Up.
 
-The reader streams the file in chunks (bounded memory, lines of at most :data:`MAX_LINE_CHARS`) with numpy's C
-parser; when a chunk does not parse it re-reads that chunk line by line to name the file, line and column at fault.
+The reader streams the file in chunks (bounded memory, lines of at most :data:`MAX_LINE_CHARS`) through a compiled
+parser (``_rows.parse_rows``), a plain file's bytes where the read put them; when a chunk does not parse it re-reads
+that chunk line by line to name the file, line and column at fault.
 A value that parses but no sensor or place can have (a rate of 1e308 Hz, a latitude of 95°, an increment of 1e300)
 is refused like a malformed one: every comment key is held to a :class:`Range`, and so is every cell when the
 consumer asks (:class:`RowLimits`; the replay does, a round trip of the format need not); every value an error
@@ -19,16 +20,16 @@ import io
 import math
 import re
 import reprlib
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from functools import partial
 from itertools import islice
 from pathlib import Path
-from typing import TextIO
+from typing import BinaryIO, TextIO
 
 import numpy as np
 
-from ._rows import newlines, parse_rows, rows_within
+from ._rows import newlines, parse_rows, plain_text, rows_within
 from .plausibility import HEIGHT_RANGE_M, LATITUDE_RANGE_DEG, LONGITUDE_RANGE_DEG
 
 IMU_COLUMNS = ("t", "dthx", "dthy", "dthz", "dvx", "dvy", "dvz")
@@ -367,44 +368,72 @@ def first_not_increasing(times: np.ndarray, t_last: float) -> tuple[int, str] | 
     return bad, f"time does not increase ({float(times[bad])!r} after {float(times[bad - 1] if bad else t_last)!r})"
 
 
-def read_segments(stream: TextIO, path: str, first_line: int, columns: tuple[str, ...] = IMU_COLUMNS,
-                  chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
+def read_segments(pieces: Iterable[str | memoryview], path: str, first_line: int,
+                  columns: tuple[str, ...] = IMU_COLUMNS, chunk_rows: int = CHUNK_ROWS, increasing: bool = True,
                   limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
     """Yield (restart, block): (N, len(columns)) float64 blocks of at most ``chunk_rows`` data rows, every value
     within ``limits`` (if given), each after a :data:`RESTART_MARKER` line with that marker's reason (None for the
     others; a marker's block may be empty).
 
-    ``increasing``: time must increase strictly (IMU logs), within the rows between two markers; aiding logs leave
-    ordering to the consumer, which counts repeats and out-of-order epochs instead of stopping.
+    ``pieces``: the log's text after its header, line ``first_line`` on, in pieces of whole lines (the last may end
+    inside a line) as :func:`_plain_pieces` or :func:`_text_pieces` cut it. ``increasing``: time must increase
+    strictly (IMU logs), within the rows between two markers; aiding logs leave ordering to the consumer, which
+    counts repeats and out-of-order epochs instead of stopping.
 
-    The stream is read in pieces of whole lines (:data:`CHUNK_CHARS`); a piece of plain rows within their limits
-    is one compiled pass, any other (a marker, a bad or long line, a file cut inside its last line) is read line by
-    line by :func:`_line_segments`, which names the line.
+    A piece of plain rows within their limits is one compiled pass; any other (a marker, a bad or long line, a file
+    cut inside its last line) is read line by line by :func:`_line_segments`, which names the line.
     """
     line_no, t_last = first_line, -math.inf
     ranges = _column_ranges(limits, columns)
-    for text in _whole_lines(stream):
-        # a piece without its line end (the file cut inside its last line, or the start of a line too long) or with
-        # a marker goes to the line reader, which names that line
-        block = parse_rows(text, len(columns), MAX_LINE_CHARS, MARKER_BYTES) if text.endswith("\n") else None
+    for piece in pieces:
+        block = parse_rows(piece, len(columns), MAX_LINE_CHARS, MARKER_BYTES)
         if block is None or not _acceptable(block, columns, limits, ranges, increasing, t_last):
-            pieces = _line_segments(io.StringIO(text), path, line_no, columns, chunk_rows, increasing, limits, t_last)
+            text = piece if isinstance(piece, str) else str(piece, "ascii")
+            found = _line_segments(io.StringIO(text), path, line_no, columns, chunk_rows, increasing, limits, t_last)
         else:
-            pieces = ((None, block[start:start + chunk_rows]) for start in range(0, len(block), chunk_rows))
-        for reason, piece in pieces:
+            found = ((None, block[start:start + chunk_rows]) for start in range(0, len(block), chunk_rows))
+        for reason, rows in found:
             if reason is not None:
                 t_last = -math.inf
-            if len(piece):
-                t_last = float(piece[-1, 0])
-            yield reason, piece
-        line_no += newlines(text)
+            if len(rows):
+                t_last = float(rows[-1, 0])
+            yield reason, rows
+        line_no += newlines(piece)
 
 
 CHUNK_CHARS = 1 << 19
 """Characters read at a time: whole lines of them are parsed in one pass."""
 
 
-def _whole_lines(stream: TextIO) -> Iterator[str]:
+def _plain_pieces(raw: BinaryIO) -> Iterator[str | memoryview]:
+    """The text of ``raw`` (binary, from the start of a line) in pieces of whole lines of about :data:`CHUNK_CHARS`
+    as :func:`_text_pieces` cuts a text-mode read, without decoding it: while the bytes are their text (ASCII, no
+    carriage return: ``_rows.plain_text``) a piece is a view of one buffer, valid until the next piece is asked for;
+    from the first piece that is not, the rest of the file is read in text mode (UTF-8, bad bytes replaced,
+    universal newlines) by :func:`_text_pieces`. A line end is a line's end in both readings, so the two meet
+    exactly."""
+    buffer = bytearray(CHUNK_CHARS + MAX_LINE_CHARS + 1)
+    view = memoryview(buffer)
+    kept, start = 0, raw.tell()   # bytes carried over (the start of a line), the file offset of buffer[0]
+    while read := raw.readinto(view[kept:kept + CHUNK_CHARS]):
+        end = kept + read
+        cut = buffer.rfind(b"\n", 0, end) + 1
+        if not plain_text(view[:end]):
+            raw.seek(start)
+            yield from _text_pieces(io.TextIOWrapper(raw, encoding="utf-8", errors="replace"))
+            return
+        if cut:
+            yield view[:cut]
+        kept, start = end - cut, start + cut
+        buffer[:kept] = bytes(view[cut:end])   # a copy: the two ranges may overlap
+        if kept > MAX_LINE_CHARS:
+            yield str(view[:MAX_LINE_CHARS + 1], "ascii")
+            return
+    if kept:
+        yield str(view[:kept], "ascii")
+
+
+def _text_pieces(stream: TextIO) -> Iterator[str]:
     """The stream's text in pieces of whole lines of about :data:`CHUNK_CHARS`; the last piece may end without a
     line end: a file cut short, or a line longer than :data:`MAX_LINE_CHARS` (its first characters only, read no
     further: the line reader refuses it, so a line of gigabytes costs one piece of memory)."""
@@ -507,9 +536,20 @@ def stream_segments(path: str, columns: tuple[str, ...], required: tuple[str, ..
                     limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
     """The (restart, block) pieces of :func:`read_segments` of a log with these columns, after its header (its keys
     checked against ``ranges``), each value within ``limits``."""
-    with open(path, encoding="utf-8", errors="replace") as stream:
+    with open(path, encoding="utf-8", errors="replace") as stream, open(path, "rb") as raw:
         _, consumed = read_header(stream, path, columns, required, ranges)
-        yield from read_segments(stream, path, consumed + 1, columns, chunk_rows, increasing, limits)
+        pieces = _plain_pieces(raw) if _skip_plain_lines(raw, consumed) else _text_pieces(stream)
+        yield from read_segments(pieces, path, consumed + 1, columns, chunk_rows, increasing, limits)
+
+
+def _skip_plain_lines(raw: BinaryIO, count: int) -> bool:
+    """Read ``count`` lines of ``raw`` (the header a text-mode read took): True if their bytes are their text (each
+    ended by a newline, ASCII, no carriage return), so ``raw`` now stands where the text stream does."""
+    for _ in range(count):
+        line = raw.readline(MAX_LINE_CHARS + 1)
+        if not line.endswith(b"\n") or not plain_text(line):
+            return False
+    return True
 
 
 def stream_rows(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,

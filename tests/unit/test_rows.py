@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from sinsalign.protocol._rows import newlines, parse_rows, rows_within
+from sinsalign.protocol._rows import newlines, parse_rows, plain_text, rows_within
 from sinsalign.protocol.imu_log import Range, RowLimits, first_not_increasing
 
 NCOLS = 3
@@ -128,3 +128,28 @@ def test_a_line_that_begins_with_the_marker_refuses_the_piece(text, refused):
     the same words anywhere but at a line's start are a plain comment."""
     assert (parse_rows(text, NCOLS, 4096, b"# restart:") is None) == refused
     assert parse_rows(text, NCOLS, 4096) is not None
+
+
+@settings(max_examples=300, deadline=None)
+@given(plain_chunk() | st.text(st.characters(codec="ascii"), max_size=200))
+def test_a_buffer_of_the_text_parses_as_the_text(text):
+    """The reader hands its pieces as views of its read: the same rows (or refusal) as the str of the same bytes."""
+    data = bytearray(text.encode() + b"9")   # a byte after the view: the parse must not read it
+    got, want = parse_rows(memoryview(data)[:-1], NCOLS, 4096), parse_rows(text, NCOLS, 4096)
+    assert (got is None) == (want is None)
+    if got is not None:
+        assert got.tobytes() == want.tobytes()
+    assert newlines(memoryview(data)[:-1]) == text.count("\n")
+
+
+@pytest.mark.parametrize("data", [b"1,2,3\n# caf\xc3\xa9\n", b"1,2,3\n# a\rb\n", b"1,2,3\n# \xff\n", b"1,2,3"])
+def test_a_buffer_beyond_plain_ascii_or_without_its_last_line_end_is_refused(data):
+    """Bytes whose text a text-mode read would give otherwise (a carriage return ends a line there) are refused."""
+    assert parse_rows(data, NCOLS, 4096) is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=100), st.integers(0, 7))
+def test_plain_text_is_ascii_without_a_carriage_return(data, offset):
+    view = memoryview(bytearray(b"x" * offset + data))[offset:]   # any alignment
+    assert plain_text(view) == (data.isascii() and b"\r" not in data)
