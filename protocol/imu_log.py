@@ -409,18 +409,19 @@ def _plain_pieces(raw: BinaryIO) -> Iterator[str | memoryview]:
     """The text of ``raw`` (binary, from the start of a line) in pieces of whole lines of about :data:`CHUNK_CHARS`
     as :func:`_text_pieces` cuts a text-mode read, without decoding it: while the bytes are their text (ASCII, no
     carriage return: ``_rows.plain_text``) a piece is a view of one buffer, valid until the next piece is asked for;
-    from the first piece that is not, the rest of the file is read in text mode (UTF-8, bad bytes replaced,
-    universal newlines) by :func:`_text_pieces`. A line end is a line's end in both readings, so the two meet
-    exactly."""
+    from the first read that is not, the rest of the file is read in text mode (UTF-8, bad bytes replaced,
+    universal newlines) by :func:`_text_pieces`, from that read's offset with the plain text before it carried:
+    the pieces, and so the blocks and which error of a piece is named first, are a text-mode read's."""
     buffer = bytearray(CHUNK_CHARS + MAX_LINE_CHARS + 1)
     view = memoryview(buffer)
     kept, start = 0, raw.tell()   # bytes carried over (the start of a line), the file offset of buffer[0]
     while read := raw.readinto(view[kept:kept + CHUNK_CHARS]):
         end = kept + read
         cut = buffer.rfind(b"\n", 0, end) + 1
-        if not plain_text(view[:end]):
-            raw.seek(start)
-            yield from _text_pieces(io.TextIOWrapper(raw, encoding="utf-8", errors="replace"))
+        if not plain_text(view[kept:end]):   # text mode from this read on, with the plain text carried over
+            raw.seek(start + kept)
+            yield from _text_pieces(io.TextIOWrapper(raw, encoding="utf-8", errors="replace"),
+                                    str(view[:kept], "ascii"))
             return
         if cut:
             yield view[:cut]
@@ -433,11 +434,11 @@ def _plain_pieces(raw: BinaryIO) -> Iterator[str | memoryview]:
         yield str(view[:kept], "ascii")
 
 
-def _text_pieces(stream: TextIO) -> Iterator[str]:
-    """The stream's text in pieces of whole lines of about :data:`CHUNK_CHARS`; the last piece may end without a
-    line end: a file cut short, or a line longer than :data:`MAX_LINE_CHARS` (its first characters only, read no
-    further: the line reader refuses it, so a line of gigabytes costs one piece of memory)."""
-    carry = ""
+def _text_pieces(stream: TextIO, carry: str = "") -> Iterator[str]:
+    """The stream's text, after the start of a line ``carry``, in pieces of whole lines of about
+    :data:`CHUNK_CHARS`; the last piece may end without a line end: a file cut short, or a line longer than
+    :data:`MAX_LINE_CHARS` (its first characters only, read no further: the line reader refuses it, so a line of
+    gigabytes costs one piece of memory)."""
     while data := stream.read(CHUNK_CHARS):
         text = carry + data
         cut = text.rfind("\n") + 1

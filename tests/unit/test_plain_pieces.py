@@ -3,8 +3,8 @@ lie, and a text-mode read (UTF-8 with bad bytes replaced, universal newlines) fr
 
 GIVEN any log (plain rows, comments in any language, restart markers, Windows and old Mac line ends, bytes that are
 no UTF-8, lines of thousands of characters, a last line cut short), read in pieces of any size, WHEN the reader takes
-it, THEN it gives what a text-mode read of the whole file gives: the same samples bit for bit, the same restart marks,
-or the same error naming the same line and column.
+it, THEN it gives what a text-mode read of the whole file gives: the same blocks of samples bit for bit, the same
+restart marks, or the same error naming the same line and column.
 """
 from __future__ import annotations
 
@@ -73,7 +73,7 @@ def log_bytes(draw) -> bytes:
 
 
 def outcome(pieces) -> list[tuple[str | None, bytes]] | str:
-    """What a reader yields, or its error's message."""
+    """What a reader yields, block by block, or its error's message."""
     try:
         return [(reason, rows.tobytes()) for reason, rows in pieces]
     except LogFormatError as exc:
