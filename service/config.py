@@ -375,13 +375,16 @@ class ZenohConfig:
 
 @dataclass(frozen=True, slots=True)
 class DaemonConfig:
-    """The daemon's status and recording."""
+    """The daemon's status, recording and scheduling."""
 
     status_period_s: float = _seconds(1.0, 0.01, 3600.0, doc="status publication period (wall time)")
     record_path: str = _text("", doc="record the decoded input as an IMU log (CLI --record; a name ending in .sbin: "
                              "the binary form)")
     max_bridge_samples: int = _number(5, Range(0, 1000), "longest sequence gap bridged by interpolation; longer "
                                       "restarts")
+    realtime_priority: int = _number(0, Range(0, 99), "SCHED_FIFO priority of the loop and Zenoh's threads (1-99, "
+                                     "CAP_SYS_NICE or `ulimit -r`; a refusal is logged and the daemon runs on); 0: "
+                                     "the normal scheduler")
 
 
 @dataclass(frozen=True, slots=True)

@@ -203,6 +203,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     from sinsalign.service.config import ConfigError, load_config
     from sinsalign.service.daemon import Daemon
+    from sinsalign.service.realtime import request_realtime
     from sinsalign.service.serial_port import SerialPort
     from sinsalign.service.zenoh_session import open_session
     overrides = {**_overrides(args), **_zenoh_overrides(args)}
@@ -229,6 +230,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise ConfigError("no input: give --serial PATH (serial.path) or --zenoh-imu (zenoh.imu_input = true)")
     port = SerialPort(config.serial.path, config.serial.baud, config.serial.reconnect_max_s) \
         if config.serial.path else None
+    refused = request_realtime(config.daemon.realtime_priority)   # before the session: its threads inherit it
+    if refused:
+        logging.getLogger("sinsalign.daemon").warning(refused)
+    elif config.daemon.realtime_priority:
+        logging.getLogger("sinsalign.daemon").info("real-time scheduling: SCHED_FIFO priority %d",
+                                                   config.daemon.realtime_priority)
     try:
         with open_session(config.zenoh) as session:   # closed however the daemon ends, or fails to start
             daemon = Daemon(config, session, port)
@@ -279,7 +286,11 @@ def cmd_soak(args: argparse.Namespace) -> int:
                           f"({args.report_every:g} s of data)")
     if args.window >= args.report_every:
         raise ConfigError(f"--window {args.window:g} must be shorter than --report-every {args.report_every:g}")
+    if args.realtime_priority > 99:
+        raise ConfigError(f"--realtime-priority {args.realtime_priority} must be at most 99 (SCHED_FIFO's highest)")
     through = "the null relay (no alignment: the floor)" if args.floor else "'sinsalign serve'"
+    if args.realtime_priority:
+        through += f" under SCHED_FIFO {args.realtime_priority}"
     print(f"soak: {args.hours:g} h of 200-Hz frames through {through} on a pty, attitude for every sample: "
           f"flat out, the last {args.window:g} s of every {args.report_every:g} s at 200 Hz", file=sys.stderr)
 
@@ -295,7 +306,8 @@ def cmd_soak(args: argparse.Namespace) -> int:
         print(f"  {s.hours:7.2f} h simulated, {s.wall_s:6.0f} s wall: RSS {s.rss_mib:6.2f} MiB, frame → attitude "
               f"p50 {p50:5.2f} ms p99 {p99:5.2f} ms max {most:6.2f} ms ({s.received}/{s.frames}){own([s])}", flush=True)
 
-    samples = soak(args.hours, args.report_every, args.window, on_sample=show, floor=args.floor)
+    samples = soak(args.hours, args.report_every, args.window, on_sample=show, floor=args.floor,
+                   realtime_priority=args.realtime_priority)
     p50, p99, most = percentiles_ms(np.concatenate([s.latency_ms for s in samples]))
     print(f"RSS growth from the first report to the last: {samples[-1].rss_mib - samples[0].rss_mib:+.2f} MiB; "
           f"frame → attitude over every window: p50 {p50:.2f} ms, p99 {p99:.2f} ms, max {most:.2f} ms "
@@ -517,6 +529,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--floor", action="store_true",
                    help="the same through a null relay instead of the daemon (the same serial read, frame decoder "
                    "and attitude messages, no alignment): this machine's floor of the frame → attitude latency")
+    p.add_argument("--realtime-priority", type=SEED, default=0, metavar="N",
+                   help="the daemon's (or relay's) daemon.realtime_priority: SCHED_FIFO at N (1-99) if the system "
+                   "grants it (default 0: the normal scheduler; the soak itself keeps its own)")
     p.set_defaults(func=cmd_soak)
 
     p = sub.add_parser("config", help="print the configuration in effect as TOML",

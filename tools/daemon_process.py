@@ -30,9 +30,10 @@ class DaemonProcess:
     """Start with ``with DaemonProcess(site, rate_hz, output_period_s) as d:``; write frames to ``d.pty``.
 
     ``relay``: the null relay (tools/null_relay.py) on the same configuration instead of the daemon, the floor of its
-    latency on this machine."""
+    latency on this machine. ``realtime_priority``: its ``daemon.realtime_priority`` (0: the normal scheduler)."""
 
-    def __init__(self, site: Site, rate_hz: float, output_period_s: float, relay: bool = False) -> None:
+    def __init__(self, site: Site, rate_hz: float, output_period_s: float, relay: bool = False,
+                 realtime_priority: int = 0) -> None:
         self.port = free_loopback_port()
         self.pty = PtyPair()
         self._tmp = tempfile.TemporaryDirectory()
@@ -40,7 +41,8 @@ class DaemonProcess:
         config_path.write_text(
             f'[site]\nlat_deg = {site.lat / DEG}\n[imu]\nrate_hz = {rate_hz}\n'
             f'[serial]\npath = "{self.pty.port_name}"\n[zenoh]\nlisten = ["tcp/127.0.0.1:{self.port}"]\n'
-            f'unit = "bench"\n[output]\nperiod_s = {output_period_s}\n')
+            f'unit = "bench"\n[output]\nperiod_s = {output_period_s}\n'
+            f'[daemon]\nrealtime_priority = {realtime_priority}\n')
         command = ["sinsalign.tools.null_relay", str(config_path)] if relay else \
             ["sinsalign", "serve", "--config", str(config_path)]
         self.process = subprocess.Popen([sys.executable, "-m", *command], stderr=subprocess.DEVNULL)

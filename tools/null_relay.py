@@ -18,6 +18,7 @@ from sinsalign.protocol.keys import UnitKeys
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.protocol.serial_frame import FrameDecoder
 from sinsalign.service.config import load_config
+from sinsalign.service.realtime import request_realtime
 from sinsalign.service.serial_port import SerialPort
 from sinsalign.service.zenoh_outputs import ZenohOutputs
 from sinsalign.service.zenoh_session import open_session
@@ -29,6 +30,9 @@ FIXED = ResultRecord(t=0.0, phase="coarse", q=(1.0, 0.0, 0.0, 0.0), pitch_deg=0.
 def relay(config_path: str) -> None:
     """Relay frame times to attitude messages, through the daemon's own outputs, until SIGTERM or SIGINT."""
     config = load_config(config_path)
+    refused = request_realtime(config.daemon.realtime_priority)   # as the daemon: before the session's threads
+    if refused:
+        print(refused, file=sys.stderr)
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())

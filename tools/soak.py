@@ -58,10 +58,12 @@ def percentiles_ms(latency_ms: np.ndarray) -> tuple[float, float, float]:
 
 
 def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 10.0, seed: int = 0,
-         on_sample: Callable[[SoakSample], None] | None = None, floor: bool = False) -> list[SoakSample]:
+         on_sample: Callable[[SoakSample], None] | None = None, floor: bool = False,
+         realtime_priority: int = 0) -> list[SoakSample]:
     """``hours`` of a noisy static base at 200 Hz through ``sinsalign serve``; a :class:`SoakSample` every
     ``report_every_s`` of simulated time, its last ``window_s`` played at the IMU's rate. ``floor``: through the null
-    relay instead (tools/null_relay.py: the machine's and the transport's share alone; no statuses, no own figures)."""
+    relay instead (tools/null_relay.py: the machine's and the transport's share alone; no statuses, no own figures).
+    ``realtime_priority``: the daemon's (or relay's) ``daemon.realtime_priority``; the soak itself keeps its own."""
     scenario = get_scenario("static")
     rate = scenario.rate_hz
     dt = 1.0 / rate
@@ -76,7 +78,7 @@ def soak(hours: float = 24.0, report_every_s: float = 3600.0, window_s: float = 
     samples: list[SoakSample] = []
     per_report, per_window, per_piece = round(report_every_s * rate), round(window_s * rate), round(
         FLAT_OUT_PIECE_S * rate)
-    with DaemonProcess(scenario.site, rate, dt, relay=floor) as daemon:
+    with DaemonProcess(scenario.site, rate, dt, relay=floor, realtime_priority=realtime_priority) as daemon:
         daemon.watching = False
         start, written = time.monotonic(), 0
         for report in range(round(hours * 3600.0 / report_every_s)):
