@@ -1,9 +1,9 @@
 """Real-time scheduling of the daemon (service/realtime.py, ``daemon.realtime_priority``).
 
-GIVEN a priority, WHEN the daemon's start asks for it, THEN every thread of the process and every thread started after
-(Zenoh's runtime) run under SCHED_FIFO at that priority; GIVEN a process the system refuses it (no CAP_SYS_NICE, RLIMIT_RTPRIO
-0), THEN it gets one line saying why and how to grant it, and runs on under the normal scheduler. Each case runs in a
-child process: the test process keeps its own scheduling.
+GIVEN a priority, WHEN the daemon's start asks for it, THEN every thread of the process and every thread started
+after (Zenoh's runtime) run under SCHED_FIFO at that priority; GIVEN a process the system refuses it (no
+CAP_SYS_NICE, RLIMIT_RTPRIO 0), THEN it gets one line saying why and how to grant it, and runs on under the normal
+scheduler. Each case runs in a child process: the test process keeps its own scheduling.
 """
 from __future__ import annotations
 
