@@ -523,13 +523,16 @@ class ImuLog:
                  ) -> Iterator[tuple[str | None, np.ndarray, np.ndarray, np.ndarray]]:
         """(restart, t, Δθ, Δv) blocks as :meth:`blocks`, ``restart`` the reason of the :data:`RESTART_MARKER` line
         before the block (a daemon's recording: the alignment started over there), else None."""
+        for reason, block in self.row_segments(chunk_rows, limits):
+            yield reason, block[:, 0], block[:, 1:4], block[:, 4:7]
+
+    def row_segments(self, chunk_rows: int = CHUNK_ROWS,
+                     limits: RowLimits | None = None) -> Iterator[tuple[str | None, np.ndarray]]:
+        """(restart, rows) as :meth:`segments`, the rows (N, 7: t, Δθ, Δv) as the reader parsed them."""
         if self.binary:
             from .imu_binary import read_binary_segments  # here: it builds on this module
-            pieces = read_binary_segments(self.path, chunk_rows, limits)
-        else:
-            pieces = stream_segments(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits)
-        for reason, block in pieces:
-            yield reason, block[:, 0], block[:, 1:4], block[:, 4:7]
+            return read_binary_segments(self.path, chunk_rows, limits)
+        return stream_segments(self.path, IMU_COLUMNS, REQUIRED_KEYS, chunk_rows, limits=limits)
 
 
 def stream_segments(path: str, columns: tuple[str, ...], required: tuple[str, ...], chunk_rows: int = CHUNK_ROWS,

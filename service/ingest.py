@@ -16,7 +16,6 @@ import numpy as np
 
 from ..protocol import messages
 from ..protocol.counters import Counters, count
-from ..protocol.imu_log import G0_MS2, RANGE_INTERVALS
 from ..protocol.results import ResultRecord
 from .aiding import AidingTrack, AidingWait
 from .align.conventions import DEG
@@ -26,19 +25,11 @@ from .config import Config
 from .gnss_receiver import gnss_receiver_for
 from .pipeline import AlignmentPipeline, build_pipeline
 from .restarting import RestartingPipeline
-from .sample_gate import SampleGate
+from .sample_gate import gate_for
 from .serial_formats import Decoded, SerialFormat, serial_format_for
 
 AIDING_INBOX_LIMIT = 10_000
 """Serial aiding epochs held in ``Ingest.aiding_inbox`` until the aided modes take them (then dropped, counted)."""
-
-
-def gate_for(config: Config) -> SampleGate:
-    """The sample gate of the configured IMU: its rate, the daemon's bridging, and the increments its ranges allow."""
-    interval_s = RANGE_INTERVALS / config.imu.rate_hz
-    return SampleGate(config.imu.rate_hz, config.daemon.max_bridge_samples,
-                      max_dtheta_rad=config.imu.gyro_range_deg_s * DEG * interval_s,
-                      max_dv_mps=config.imu.acc_range_g * G0_MS2 * interval_s)
 
 
 @dataclass(slots=True)

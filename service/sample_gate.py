@@ -25,9 +25,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..protocol.counters import Counters, count
-from ..protocol.imu_log import MAX_TIME_S
+from ..protocol.imu_log import G0_MS2, MAX_TIME_S, RANGE_INTERVALS
 from ..protocol.serial_frame import IMU_ROW_COLUMNS
 from ._gate import plain_rows, screen
+from .align.conventions import DEG
+from .config import Config
 
 SAMPLE_COLUMNS = IMU_ROW_COLUMNS
 """The one row a decoded IMU sample travels in from every decoder to the pipeline: t (s), Δθ (3) rad, Δv (3) m/s,
@@ -77,8 +79,8 @@ class SampleGate:
     _behind: list[np.ndarray] = field(default_factory=list)   # samples in a row behind _last, in time order
 
     def admit(self, samples: np.ndarray) -> list[Segment]:
-        """Decoded samples (N, :data:`SAMPLE_COLUMNS`) in arrival order → segments to align; a segment carries the
-        restart of every cut since the previous segment, whichever call made it.
+        """Decoded samples (N, :data:`SAMPLE_COLUMNS`), or a log's rows (N, 7), in arrival order → segments to align;
+        a segment carries the restart of every cut since the previous segment, whichever call made it.
 
         Runs of plain samples (plausible, not saturated, each one sample period after the one before) are admitted
         as whole arrays; each other sample goes through the rules one at a time, with the same result."""
@@ -88,7 +90,8 @@ class SampleGate:
         if len(samples) == 0:
             return segments
         block = samples[:, :7]
-        flags = samples[:, 7:9].astype(np.int64)
+        # a log's rows (N, 7) carry no status word and no saturation flag
+        flags = samples[:, 7:9].astype(np.int64) if samples.shape[1] > 7 else np.zeros((len(samples), 2), np.int64)
         # a time no clock reads; beyond the range, no sensor's value (a frame flagged saturated is the sensor at full
         # scale: a restart, below)
         dtheta_max, dv_max, clockless, out_of_range, refused = screen(block, flags[:, 1], self.max_dtheta_rad,
@@ -139,6 +142,11 @@ class SampleGate:
             self._last, last_here = row, k - 1
         self._close(segments, rows)
         return segments
+
+    def new_time_base(self) -> None:
+        """The samples from here on may start a new time base (a recording's restart marker: the alignment started
+        over there, perhaps on a sensor's restarted clock): none before them is the last admitted."""
+        self._last, self._behind, self._restart_reason = None, [], None
 
     def _plain(self, t: np.ndarray, refused: np.ndarray) -> np.ndarray:
         """Whether each sample, if the one before it (``_last`` for the first) is the last admitted, is admitted as
@@ -191,3 +199,13 @@ class SampleGate:
         self.counters.samples_bridged += missing
         fractions = np.arange(1, missing + 1) / (missing + 1)
         return before + fractions[:, None] * (after - before)
+
+
+def gate_for(config: Config, rate_hz: float | None = None) -> SampleGate:
+    """The sample gate of the configured IMU: its rate (or ``rate_hz``: a log's), the daemon's bridging, and the
+    increments its ranges allow."""
+    rate_hz = config.imu.rate_hz if rate_hz is None else rate_hz
+    interval_s = RANGE_INTERVALS / rate_hz
+    return SampleGate(rate_hz, config.daemon.max_bridge_samples,
+                      max_dtheta_rad=config.imu.gyro_range_deg_s * DEG * interval_s,
+                      max_dv_mps=config.imu.acc_range_g * G0_MS2 * interval_s)

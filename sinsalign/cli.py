@@ -138,6 +138,8 @@ def cmd_replay(args: argparse.Namespace) -> int:
         print(f"t = {last.t:g} s: heading {last.heading_deg:.4f}° ± {last.heading_sigma_deg:.4f}°, "
               f"pitch {last.pitch_deg:.4f}°, roll {last.roll_deg:.4f}° (level σ {last.level_sigma_deg:.4f}°), "
               f"phase {last.phase}, converged: {last.converged}", file=sys.stderr)
+    if summary.gate:
+        print("sample gate: " + ", ".join(f"{name} {value}" for name, value in summary.gate.items()), file=sys.stderr)
     return 0
 
 

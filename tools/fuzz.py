@@ -69,7 +69,8 @@ from sinsalign.protocol.serial_frame import (
     encode_imu,
 )
 from sinsalign.service.config import Config, ConfigError, config_from_mapping, load_config, tables, value_fields
-from sinsalign.service.ingest import Ingest, gate_for
+from sinsalign.service.ingest import Ingest
+from sinsalign.service.sample_gate import gate_for
 from sinsalign.service.serial_formats import serial_format_for
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.files import log_keys

@@ -19,6 +19,7 @@ from sinsalign.service.config import Config, ConfigError, config_from_mapping
 from sinsalign.service.pipeline import build_pipeline
 from sinsalign.service.restarting import RestartingPipeline
 from sinsalign.service.safe_files import open_private
+from sinsalign.service.sample_gate import gate_for
 
 
 @dataclass(frozen=True, slots=True)
@@ -27,6 +28,7 @@ class ReplaySummary:
     records: int
     last: ResultRecord | None
     stages: str   # what ran (AlignmentPipeline.stages_text)
+    gate: dict[str, int]   # the sample gate's counters that are not zero (gaps bridged, restarts, drops)
 
 
 def parse_aids(specs: list[str] | None) -> dict[str, str]:
@@ -94,6 +96,10 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     """Process ``imu_csv`` (with aiding logs ``aids``: kind → path) and write one result per output
     epoch to ``out_jsonl``.
 
+    The log's samples go through the daemon's sample gate, as a live line's do: a gap of a few samples is bridged,
+    a longer one starts the alignment over, an increment beyond the configured IMU's range is dropped; a daemon's
+    recording (its admitted samples, its restart marks) replays as it ran.
+
     Raises LogFormatError (file, line, column named) on a malformed log or a sample no IMU can measure;
     ``out_jsonl`` is then left as it was (results go to a temporary file that replaces it only on success).
     """
@@ -102,8 +108,11 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     config, feeds = open_aids(aids or {}, config)
     site = Site(h.lat_deg * DEG, h.lon_deg * DEG, h.height_m)
     # a daemon's recording marks where it started over; a failed step starts over here as it does there
-    alignment = RestartingPipeline(lambda: build_pipeline(config, site, h.rate_hz, h.datasheet(), feeds),
-                                   lambda text: print(f"replay: {text}", file=sys.stderr))
+    def notice(text: str) -> None:
+        print(f"replay: {text}", file=sys.stderr)
+
+    alignment = RestartingPipeline(lambda: build_pipeline(config, site, h.rate_hz, h.datasheet(), feeds), notice)
+    gate = gate_for(config, h.rate_hz)
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
     samples = records = 0
@@ -113,21 +122,27 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     out = _open_partial(partial, out_path)
     try:
         # the reading thread stops with the replay, however it ends
-        with out, _progress_bar(show) as bar, closing(read_ahead(log.segments(limits=log.limits))) as blocks:
+        with out, _progress_bar(show) as bar, closing(read_ahead(log.row_segments(limits=log.limits))) as blocks:
             task = bar.add_task("replay", total=size, info="")
-            for restart, t, dtheta, dv in blocks:
+            for restart, rows in blocks:
                 if restart is not None:
                     alignment.restart()
-                if len(t) == 0:
-                    continue
-                aid = aid_rows(feeds, alignment.pipeline.aid_kinds, t)
-                for record in alignment.process(t, dtheta, dv, aid)[0]:
-                    out.write(record.to_json() + "\n")
-                    records += 1
-                    last = record
-                samples += len(t)
-                bar.update(task, completed=min(size, samples * 150), info=f"t = {t[-1]:.0f} s")
+                    gate.new_time_base()
+                samples += len(rows)
+                for segment in gate.admit(rows):
+                    if segment.restart:
+                        notice(segment.reason)
+                        alignment.restart()
+                    t = segment.rows[:, 0]
+                    aid = aid_rows(feeds, alignment.pipeline.aid_kinds, t)
+                    for record in alignment.process(t, segment.rows[:, 1:4], segment.rows[:, 4:7], aid)[0]:
+                        out.write(record.to_json() + "\n")
+                        records += 1
+                        last = record
+                if len(rows):
+                    bar.update(task, completed=min(size, samples * 150), info=f"t = {rows[-1, 0]:.0f} s")
         os.replace(partial, out_path)
     finally:
         partial.unlink(missing_ok=True)
-    return ReplaySummary(samples, records, last, alignment.pipeline.stages_text())
+    return ReplaySummary(samples, records, last, alignment.pipeline.stages_text(),
+                         {name: value for name, value in gate.counters.as_dict().items() if value})
