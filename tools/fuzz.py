@@ -925,12 +925,14 @@ def kept_copy(paths: Sequence[Path | str]) -> str:
 
 
 def _replay_once(tally: Tally, config: Config, written: ReplayInput, out: Path, what: Callable[[], str]) -> None:
-    """One replay of ``written``; the estimator restarts it tells of counted."""
+    """One replay of ``written``; the estimator restarts it tells of, and its sample gate's counters, counted."""
     notices = io.StringIO()
     with contextlib.redirect_stderr(notices):
-        tally.attempt(partial(replay, written.imu, out, config, progress=False, aids=written.aids), what,
-                      one_line=True)
+        summary = tally.attempt(partial(replay, written.imu, out, config, progress=False, aids=written.aids), what,
+                                one_line=True)
     tally.counters["estimator_restarts"] += notices.getvalue().count(REPLAY_NOTICE)
+    for name, value in (summary.gate.items() if summary is not None else ()):
+        tally.counters[name] += value
     tally.inputs += 1
     tally.values += written.values
 
