@@ -53,18 +53,28 @@ class ResultRecord:
     @property
     def finite(self) -> bool:
         """Every number is finite (trace_P excepted: infinite before the first observation, carried as null)."""
+        if self._plain_numbers() is not None:   # every record of every mode but transfer alignment's: one sum
+            return True
         return all(_finite(getattr(self, name)) for name in self.__slots__ if name != "trace_P")
+
+    def _plain_numbers(self) -> tuple[float, ...] | None:
+        """t, q, pitch, roll, heading, the two σ and rho, when the record has no mounting and each is a float and
+        finite (their sum is: a NaN or an infinity anywhere makes it one), else None."""
+        numbers = (self.t, *self.q, self.pitch_deg, self.roll_deg, self.heading_deg, self.heading_sigma_deg,
+                   self.level_sigma_deg, self.rho)
+        if (self.mount_q is None and self.mount_sigma_deg is None and all(type(x) is float for x in numbers)
+                and math.isfinite(sum(numbers))):
+            return numbers
+        return None
 
     def to_json(self) -> str:
         """One line of strict JSON. A number that is not finite (trace_P aside, carried as null) is a fault upstream;
         it is refused here, naming the fields, rather than written as NaN or Infinity, which no JSON reader takes.
         A record of plain finite floats (every mode's but transfer alignment's) is formatted directly, as the encoder
         writes it (float's repr, the pinned field order)."""
-        numbers = (self.t, *self.q, self.pitch_deg, self.roll_deg, self.heading_deg, self.heading_sigma_deg,
-                   self.level_sigma_deg, self.rho)
-        if (self.mount_q is None and self.mount_sigma_deg is None and self.phase in PHASES
-                and type(self.n_obs) is int and type(self.converged) is bool and type(self.trace_P) is float
-                and all(type(x) is float for x in numbers) and math.isfinite(sum(numbers))):
+        numbers = self._plain_numbers()
+        if (numbers is not None and self.phase in PHASES and type(self.n_obs) is int
+                and type(self.converged) is bool and type(self.trace_P) is float):
             t, w, x, y, z, pitch, roll, heading, heading_sigma, level_sigma, rho = numbers
             trace_P = repr(self.trace_P) if math.isfinite(self.trace_P) else "null"
             return (f'{{"t":{t!r},"phase":"{self.phase}","q":[{w!r},{x!r},{y!r},{z!r}],"pitch_deg":{pitch!r},'

@@ -466,13 +466,26 @@ _ANY_FLOAT = st.floats(allow_nan=True, allow_infinity=True)
        st.booleans(), _ANY_FLOAT, st.integers(0, 10**15))
 def test_a_record_s_line_is_the_json_encoder_s(numbers, phase, converged, trace_P, n_obs):
     """The directly formatted line of a plain record is the JSON encoder's, byte for byte; one holding a number that
-    is not finite is refused as the encoder path refuses it."""
+    is not finite is refused as the encoder path refuses it, and is not :attr:`ResultRecord.finite`."""
     t, w, x, y, z, pitch, roll, heading, heading_sigma, level_sigma, rho = numbers
     record = ResultRecord(t, phase, (w, x, y, z), pitch, roll, heading, heading_sigma, level_sigma, converged, rho,
                           trace_P, n_obs)
+    assert record.finite == all(math.isfinite(v) for v in numbers)   # the sum's shortcut: 1e308 + 1e308 too
     if all(math.isfinite(v) for v in numbers):
         assert record.to_json() == record._encoded()
         assert json.loads(record.to_json())["trace_P"] == (trace_P if math.isfinite(trace_P) else None)
     else:
         with pytest.raises(ValueError, match="not finite; not written"):
             record.to_json()
+
+
+@pytest.mark.parametrize(("numbers", "mount_q", "finite"), [
+    ([1.7e308] * 11, None, True),                       # their sum overflows: each one is still finite
+    ([1.0] * 11, (1.0, 0.0, 0.0, math.nan), False),      # transfer alignment's mounting counts too
+    ([1.0] * 11, (1.0, 0.0, 0.0, 0.0), True),
+    ([1.0] * 10 + [-math.inf], None, False)])
+def test_a_record_is_finite_when_every_number_is(numbers, mount_q, finite):
+    t, w, x, y, z, pitch, roll, heading, heading_sigma, level_sigma, rho = numbers
+    record = ResultRecord(t, "fine", (w, x, y, z), pitch, roll, heading, heading_sigma, level_sigma, False, rho,
+                          math.inf, 0, mount_q, None if mount_q is None else 0.1)
+    assert record.finite == finite
