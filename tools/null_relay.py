@@ -30,9 +30,7 @@ FIXED = ResultRecord(t=0.0, phase="coarse", q=(1.0, 0.0, 0.0, 0.0), pitch_deg=0.
 def relay(config_path: str) -> None:
     """Relay frame times to attitude messages, through the daemon's own outputs, until SIGTERM or SIGINT."""
     config = load_config(config_path)
-    refused = request_realtime(config.daemon.realtime_priority)   # as the daemon: before the session's threads
-    if refused:
-        print(refused, file=sys.stderr)
+    request_realtime(config.daemon.realtime_priority)   # as the daemon: before the session's threads
     stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
