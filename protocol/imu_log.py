@@ -496,13 +496,6 @@ def _line_segments(stream: TextIO, path: str, first_line: int, columns: tuple[st
         line_no += len(lines)
 
 
-RATE_CHECK_SAMPLES = 1000
-MIN_RATE_STEPS = 9
-"""Fewer steps than this at the start of a log are not judged."""
-RATE_TOLERANCE = (0.8, 1.25)
-"""The median step over the stated period that passes: a clock a few per cent off its nominal rate does."""
-
-
 @dataclass(frozen=True, slots=True)
 class ImuLog:
     """An IMU log opened for streaming, CSV or its binary form (``binary``): its header and an iterator of
@@ -517,21 +510,6 @@ class ImuLog:
     def limits(self) -> RowLimits:
         """What this log's rows may physically hold at its rate (:func:`imu_limits`)."""
         return imu_limits(self.header.rate_hz)
-
-    def check_rate(self, t: np.ndarray) -> None:
-        """LogFormatError, at the first sample, if the log's first times ``t`` (s) do not step at its ``rate_hz``:
-        the median of up to :data:`RATE_CHECK_SAMPLES` steps outside :data:`RATE_TOLERANCE` of the period. An
-        alignment takes the header's rate for the data's: at twice the data's every sample would seem to follow a
-        lost one, and at half every block would hold twice the time."""
-        steps = np.diff(t[:RATE_CHECK_SAMPLES + 1])
-        if len(steps) < MIN_RATE_STEPS:
-            return
-        step_s, rate_hz = float(np.median(steps)), self.header.rate_hz
-        if not RATE_TOLERANCE[0] <= step_s * rate_hz <= RATE_TOLERANCE[1]:
-            raise LogFormatError(self.path, self.first_line, "t",
-                                 f"samples come every {step_s * 1e3:.4g} ms (the median step of the first "
-                                 f"{len(steps) + 1}), where the header's rate_hz = {rate_hz:g} says "
-                                 f"{1e3 / rate_hz:.4g} ms: state the data's rate", "sample " if self.binary else "")
 
     def blocks(self, chunk_rows: int = CHUNK_ROWS,
                limits: RowLimits | None = None) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray]]:

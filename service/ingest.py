@@ -172,6 +172,8 @@ class Ingest:
                 self._report(segment.reason)
                 records += self._feed(None, everything=True)   # what waited for aiding, to the old pipeline
                 self._restart(segment.reason)
+                if len(segment.rows) == 0:
+                    continue
             t = segment.rows[:, 0]
             self.counters.samples_used += len(t)
             self.t_first = float(t[0]) if self.t_first is None else self.t_first

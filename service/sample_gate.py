@@ -15,7 +15,10 @@ velocity from the integrals, and a clipped one puts a wrong one in. So, per deco
   the error is second order in the gap length on a smooth motion;
 - a longer gap, or a saturated (full-scale) value → the alignment restarts from the next good
   sample (``restarts``, with the reason in ``last_error``), in the call that brings it if not this
-  one: nothing converged survives on data the estimator never saw.
+  one: nothing converged survives on data the estimator never saw;
+- time stamps that do not step at the stated rate (rate_check.py: the median of the first 100 steps) → the
+  alignment restarts at once and every sample is dropped (``rate_mismatch``, the two periods in ``last_error``)
+  until 100 steps in a row do.
 """
 from __future__ import annotations
 
@@ -30,6 +33,7 @@ from ..protocol.serial_frame import IMU_ROW_COLUMNS
 from ._gate import plain_rows, screen
 from .align.conventions import DEG
 from .config import Config
+from .rate_check import RateCheck
 
 SAMPLE_COLUMNS = IMU_ROW_COLUMNS
 """The one row a decoded IMU sample travels in from every decoder to the pipeline: t (s), Δθ (3) rad, Δv (3) m/s,
@@ -52,6 +56,7 @@ class GateCounters(Counters):
     status_flagged: int = count("samples with a non-zero IMU status word (used)")
     implausible: int = count("samples dropped for a time no clock reads or an increment beyond the IMU's range")
     clock_resets: int = count("the IMU's clock went back (samples in a row behind the last one): a restart")
+    rate_mismatch: int = count("samples dropped: their time stamps do not step at the stated rate (imu.rate_hz)")
 
 
 @dataclass(slots=True)
@@ -66,21 +71,51 @@ class Segment:
 @dataclass(slots=True)
 class SampleGate:
     """Admits decoded samples in calls of any size: the same samples give the same segments and counters
-    however they are split into calls (a cut at the end of one call restarts the segment the next one begins)."""
+    however they are split into calls (a cut at the end of one call restarts the segment the next one begins).
+    ``rate_stated_as`` names where ``rate_hz`` comes from, for the text of a rate the samples do not keep."""
 
     rate_hz: float
     max_bridge_samples: int = 5
     max_dtheta_rad: float = np.inf
     max_dv_mps: float = np.inf
+    rate_stated_as: str = "imu.rate_hz"
     counters: GateCounters = field(default_factory=GateCounters)
     last_error: str | None = None
+    rate: RateCheck = field(init=False)
     _last: np.ndarray | None = None     # the last row admitted: t (s), Δθ (rad), Δv (m/s)
     _restart_reason: str | None = None   # a cut no segment has carried yet: why the next segment restarts
     _behind: list[np.ndarray] = field(default_factory=list)   # samples in a row behind _last, in time order
 
+    def __post_init__(self) -> None:
+        self.rate = RateCheck(self.rate_hz, self.rate_stated_as)
+
     def admit(self, samples: np.ndarray) -> list[Segment]:
         """Decoded samples (N, :data:`SAMPLE_COLUMNS`), or a log's rows (N, 7), in arrival order → segments to align;
-        a segment carries the restart of every cut since the previous segment, whichever call made it.
+        a segment carries the restart of every cut since the previous segment, whichever call made it. A segment
+        without rows only restarts the alignment: the samples do not step at the stated rate (``rate.failure``).
+
+        Until the time stamps have been seen to step at the stated rate, the samples of each window judged are
+        admitted (the first window's) or dropped (after a window that did not)."""
+        if self.rate.settled:
+            return self._admit(samples)
+        segments: list[Segment] = []
+        while len(samples) and not self.rate.settled:
+            refusing = self.rate.failure is not None
+            taken = self.rate.take(samples[:, 0])
+            if refusing:
+                self.counters.rate_mismatch += taken
+            else:
+                segments += self._admit(samples[:taken])
+            samples = samples[taken:]
+            if self.rate.failure is not None:
+                self.last_error = (f"{self.rate.failure}: no sample is aligned until they do (set "
+                                   f"{self.rate_stated_as} to the IMU's rate)")
+                if not refusing:
+                    self._stop(segments)
+        return segments + self._admit(samples) if len(samples) else segments
+
+    def _admit(self, samples: np.ndarray) -> list[Segment]:
+        """:meth:`admit` once the samples step at the stated rate.
 
         Runs of plain samples (plausible, not saturated, each one sample period after the one before) are admitted
         as whole arrays; each other sample goes through the rules one at a time, with the same result."""
@@ -145,7 +180,16 @@ class SampleGate:
 
     def new_time_base(self) -> None:
         """The samples from here on may start a new time base (a recording's restart marker: the alignment started
-        over there, perhaps on a sensor's restarted clock): none before them is the last admitted."""
+        over there, perhaps on a sensor's restarted clock): none before them is the last admitted, and their rate
+        is judged afresh."""
+        self._last, self._behind, self._restart_reason = None, [], None
+        self.rate.restart()
+
+    def _stop(self, segments: list[Segment]) -> None:
+        """The samples do not step at the stated rate: the alignment restarts now (a segment without rows) and
+        takes none until they do."""
+        self.counters.restarts += 1
+        segments.append(Segment(np.empty((0, 7)), True, self.last_error))
         self._last, self._behind, self._restart_reason = None, [], None
 
     def _plain(self, t: np.ndarray, refused: np.ndarray) -> np.ndarray:
@@ -202,10 +246,11 @@ class SampleGate:
 
 
 def gate_for(config: Config, rate_hz: float | None = None) -> SampleGate:
-    """The sample gate of the configured IMU: its rate (or ``rate_hz``: a log's), the daemon's bridging, and the
-    increments its ranges allow."""
+    """The sample gate of the configured IMU: its rate (or ``rate_hz``: a log header's), the daemon's bridging, and
+    the increments its ranges allow."""
+    stated_as = "imu.rate_hz" if rate_hz is None else "the header's rate_hz"
     rate_hz = config.imu.rate_hz if rate_hz is None else rate_hz
     interval_s = RANGE_INTERVALS / rate_hz
     return SampleGate(rate_hz, config.daemon.max_bridge_samples,
                       max_dtheta_rad=config.imu.gyro_range_deg_s * DEG * interval_s,
-                      max_dv_mps=config.imu.acc_range_g * G0_MS2 * interval_s)
+                      max_dv_mps=config.imu.acc_range_g * G0_MS2 * interval_s, rate_stated_as=stated_as)

@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from sinsalign.protocol.aiding_log import KINDS, open_aiding_log
-from sinsalign.protocol.imu_log import MIN_RATE_STEPS, open_imu_log
+from sinsalign.protocol.imu_log import LogFormatError, open_imu_log
 from sinsalign.protocol.read_ahead import read_ahead
 from sinsalign.protocol.results import ResultRecord
 from sinsalign.service.aiding import AidingFeed, AidingTrack, aid_rows
@@ -116,7 +116,6 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
     size = max(Path(imu_csv).stat().st_size, 1)
     show = sys.stderr.isatty() if progress is None else progress
     samples = records = 0
-    rate_checked = False
     last = None
     out_path = Path(out_jsonl)
     partial = out_path.with_name(f".{out_path.name}.partial")
@@ -129,11 +128,12 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
                 if restart is not None:
                     alignment.restart()
                     gate.new_time_base()
-                if not rate_checked and len(rows) > MIN_RATE_STEPS:
-                    log.check_rate(rows[:, 0])
-                    rate_checked = True
                 samples += len(rows)
-                for segment in gate.admit(rows):
+                segments = gate.admit(rows)
+                if gate.rate.failure is not None:
+                    raise LogFormatError(imu_csv, log.first_line, "t", f"{gate.rate.failure}: state the data's rate",
+                                         "sample " if log.binary else "")
+                for segment in segments:
                     if segment.restart:
                         notice(segment.reason)
                         alignment.restart()

@@ -157,6 +157,34 @@ def test_the_daemon_tells_when_the_data_are_far_noisier_than_its_datasheet(tmp_p
     assert messages.faults(status["counters"]) == {}
 
 
+@pytest.mark.parametrize("stated_hz", [400.0, 100.0])
+def test_the_daemon_aligns_nothing_on_samples_that_do_not_step_at_its_imu_rate(tmp_path, pty_pair, running,
+                                                                                stated_hz):
+    """GIVEN imu.rate_hz twice (or half) the rate of the IMU on the line (60 s of the seed-000 swing at 200 Hz),
+    THEN after the first 101 samples the alignment restarts and takes no sample (no attitude), every later sample
+    is counted as `rate_mismatch`, health degrades, and last_error names both periods and the key to set. At
+    twice the rate every sample would otherwise seem to follow a lost one and be bridged: a heading 165° off."""
+    scenario = get_scenario("seed000-swing")
+    sections = daemon_sections(scenario)
+    sections["imu"] = {**sections.get("imu", {}), "rate_hz": stated_hz}
+    run = running(**sections)
+    chunk = simulated_run(scenario, 60.0)
+    n = len(chunk.t)
+    write_stream(pty_pair.master_fd, encode_samples(chunk.t, chunk.dtheta, chunk.dv, 0))
+    wait_until(lambda: run.daemon.ingest.counters.samples_in == n)
+    wait_for_status(run.subscriber, samples_in=n)
+    run.stop()
+    statuses = run.subscriber.status
+    counters = statuses[-1]["counters"]
+    assert counters["rate_mismatch"] == n - 101 and counters["restarts"] == 1
+    assert counters["samples_used"] - counters["samples_bridged"] <= 101
+    assert statuses[-1]["last_error"].startswith(
+        f"samples come every 5 ms (the median of 100 steps), where imu.rate_hz = {stated_hz:g} says "
+        f"{1e3 / stated_hz:g} ms: no sample is aligned until they do (set imu.rate_hz to the IMU's rate)")
+    assert any(s["health"] == "degraded" for s in statuses)
+    assert all(record["t"] <= 101 / 200.0 for record in run.subscriber.attitude)
+
+
 def simulated_run(scenario: Scenario, seconds: float) -> ImuChunk:
     """Seed 1 of ``scenario``: ``seconds`` of IMU samples in one chunk (t in s, Δθ in rad, Δv in m/s)."""
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, seconds, 1,

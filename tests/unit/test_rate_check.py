@@ -1,0 +1,115 @@
+"""The sample gate's rate check (service/rate_check.py): time stamps that do not step at the stated rate stop the
+alignment.
+
+GIVEN a 200-Hz IMU stream into a gate configured for 400 Hz (or 100 Hz), WHEN 101 samples have come, THEN the
+alignment restarts at once (a segment without rows), every later sample is dropped and counted (`rate_mismatch`),
+and `last_error` names both periods; WHEN the stream then steps at the stated rate for a window, the samples after
+it are admitted again. GIVEN a clock a few per cent off, a line that loses frames now and then, or jittered time
+stamps, THEN nothing is dropped. The verdicts fall at the same samples however the calls split the stream.
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from sinsalign.service.rate_check import RATE_CHECK_STEPS
+from sinsalign.service.sample_gate import SampleGate, Segment
+
+WINDOW = RATE_CHECK_STEPS + 1   # samples in one judgement
+
+
+def stream(times: np.ndarray) -> np.ndarray:
+    """Samples (N, 9) at ``times`` (s), small increments, status 0, none saturated."""
+    rows = np.zeros((len(times), 9))
+    rows[:, 0] = times
+    rows[:, 1] = 1e-6
+    rows[:, 6] = 0.05
+    return rows
+
+
+def admitted(gate: SampleGate, samples: np.ndarray, split: int | None = None) -> list[Segment]:
+    calls = [samples] if split is None else [samples[k:k + split] for k in range(0, len(samples), split)]
+    return [segment for call in calls for segment in gate.admit(call)]
+
+
+@pytest.mark.parametrize("stated_hz", [400.0, 100.0])
+def test_samples_that_do_not_step_at_the_stated_rate_restart_the_alignment_and_are_dropped(stated_hz):
+    samples = stream(np.arange(1, 1001) / 200.0)
+    gate = SampleGate(stated_hz)
+    segments = admitted(gate, samples)
+    stop = segments[-1]
+    assert stop.restart and len(stop.rows) == 0
+    assert sum(len(s.rows) for s in segments[:-1]) > 0   # the first window went in before its verdict
+    expected = (f"samples come every 5 ms (the median of {RATE_CHECK_STEPS} steps), where imu.rate_hz = "
+                f"{stated_hz:g} says {1e3 / stated_hz:g} ms")
+    assert stop.reason == gate.last_error == \
+        f"{expected}: no sample is aligned until they do (set imu.rate_hz to the IMU's rate)"
+    assert gate.counters.rate_mismatch == len(samples) - WINDOW
+    assert gate.counters.restarts == 1
+    assert gate.admit(stream(np.arange(1001, 1101) / 200.0)) == []   # still dropped
+    assert gate.counters.rate_mismatch == len(samples) - WINDOW + 100
+
+
+def test_samples_admitted_again_after_a_window_that_steps_at_the_stated_rate():
+    wrong = np.arange(1, 301) / 200.0            # 3 windows at 200 Hz, stated 400 Hz
+    right = wrong[-1] + np.arange(1, 601) / 400.0
+    gate = SampleGate(400.0)
+    segments = admitted(gate, stream(np.concatenate((wrong, right))))
+    after_stop = segments[[s.restart and len(s.rows) == 0 for s in segments].index(True) + 1:]
+    rows = np.concatenate([s.rows for s in after_stop])
+    # windows of 101: the 2nd is wrong, the 3rd takes the last 98 wrong samples and 3 right ones
+    passing_window_end = 3 * WINDOW - len(wrong)
+    np.testing.assert_array_equal(rows[:, 0], right[passing_window_end + WINDOW:])
+    assert gate.counters.rate_mismatch == len(wrong) - WINDOW + passing_window_end + WINDOW
+    assert gate.rate.settled
+
+
+@pytest.mark.parametrize("case", ["clock 3 % fast", "clock 3 % slow", "30 % of frames lost", "jitter of 40 %"])
+def test_a_stream_at_its_rate_with_a_real_clock_and_a_lossy_line_passes(case):
+    rng = np.random.default_rng(7)
+    k = np.arange(1, 2001)
+    times = {"clock 3 % fast": k / 206.0, "clock 3 % slow": k / 194.0,
+             "30 % of frames lost": k[rng.random(len(k)) > 0.3] / 200.0,
+             "jitter of 40 %": (k + rng.uniform(-0.2, 0.2, len(k))) / 200.0}[case]
+    gate = SampleGate(200.0, max_bridge_samples=20)
+    segments = admitted(gate, stream(times))
+    assert gate.counters.rate_mismatch == 0 and gate.rate.failure is None and gate.rate.settled
+    assert not any(len(s.rows) == 0 for s in segments)
+
+
+def test_a_time_no_clock_reads_says_nothing_of_the_rate():
+    times = np.arange(1, 401) / 200.0
+    times[::10] = 1e308                      # every tenth stamp wild: the rest step at 5 ms, some at 10 ms
+    gate = SampleGate(200.0)
+    admitted(gate, stream(times))
+    assert gate.counters.rate_mismatch == 0 and gate.rate.settled
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.integers(1, 400), st.sampled_from([400.0, 100.0]))
+def test_the_verdicts_fall_at_the_same_samples_however_the_calls_split_the_stream(split, stated_hz):
+    wrong = np.arange(1, 351) / 200.0
+    right = wrong[-1] + np.arange(1, 351) / stated_hz
+    samples = stream(np.concatenate((wrong, right)))
+
+    def runs(segments: list[Segment]) -> list[tuple[str | None, list[float]]]:
+        out: list[tuple[str | None, list[float]]] = []
+        for segment in segments:
+            if segment.restart or not out:
+                out.append((segment.reason, []))
+            out[-1][1].extend(segment.rows[:, 0].tolist())
+        return out
+
+    whole, parts = SampleGate(stated_hz), SampleGate(stated_hz)
+    assert runs(admitted(whole, samples)) == runs(admitted(parts, samples, split))
+    assert whole.counters == parts.counters and whole.last_error == parts.last_error
+
+
+def test_a_new_time_base_is_judged_afresh():
+    gate = SampleGate(200.0)
+    admitted(gate, stream(np.arange(1, 201) / 200.0))
+    assert gate.rate.settled
+    gate.new_time_base()
+    segments = admitted(gate, stream(np.arange(1, 201) / 100.0))
+    assert segments[-1].restart and len(segments[-1].rows) == 0 and gate.counters.rate_mismatch == 200 - WINDOW
