@@ -280,7 +280,7 @@ class DisturbanceConfig:
     ``hold_s``. The window's store holds ``window_s / check_interval_s`` checks, at most :data:`MAX_STORED_ROWS`.
     """
 
-    enabled: bool = _flag(True, "watch a fixed base for translation")
+    enabled: bool = _flag(True, "watch a fixed base for translation and for estimates that contradict their σ")
     velocity_threshold_mps: float = _positive(0.1, 100.0, "m/s", "horizontal velocity gained within window_s that "
                                               "counts as moving")
     window_s: float = _seconds(2.0, 0.01, 600.0, doc="the window the velocity gained is judged over")

@@ -18,6 +18,7 @@ from ..protocol.results import ResultRecord
 from .align._blocks import CONTROL, DONE, MOTION, VERDICT, FixedBaseBlocks
 from .align._strapdown import rows_offset
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment, stepped_up
+from .align.consistency import ConsistencyMonitor
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from .align.disturbance import SUSPECT_FRACTION, MotionMonitor
 from .align.earth import Site
@@ -196,6 +197,9 @@ class AlignmentPipeline:
         self.motion = (MotionMonitor(self.site, d.velocity_threshold_mps, d.window_s, d.check_interval_s,
                                      d.hold_s) if d.enabled and self.checks_translation else None)
         self._next_check_s = d.check_interval_s
+        # a fixed base's estimates against their σ (consistency.py); a moving vehicle's fits and filters judge their own
+        self.consistency = ConsistencyMonitor() if self.motion is not None and self.checks_noise else None
+        self._contradiction: str | None = None   # found at a record; the alignment restarts at its block's end
         # the meter's α history lives in these estimators' b0 axes (the figures found so far stay in sigma_grade)
         self.noise = (NoiseMeter(self.config.alignment.obs_interval_s, self.site.lat, self.site.gravity)
                       if self.checks_noise else None)
@@ -390,32 +394,36 @@ class AlignmentPipeline:
                     records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
-            stage = UNTOUCHED
-            if blocks is not None:
-                limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
-                resume = False
-                while limit > b and self._blocks_ready():
-                    b, stage, folded = blocks.run(self, b, limit, folded, measured, resume)
-                    if stage != VERDICT:
-                        break
-                    self._take_verdict()   # then the block's control step, compiled again
-                    stage, resume, measured = CONTROL, True, folded
-                if stage == DONE:
-                    continue
-            end = ends[b]
-            step = (float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end], None if aid is None else aid[end],
-                    None if aid_epoch is None else aid_epoch[end])
-            if stage == CONTROL:   # the compiled loop folded and measured the block
-                self._control_step(*step)
-            elif stage == MOTION:   # … and took its control step but for the motion check
-                self._check_motion(step[0], step[1], step[3])
+            if self._contradiction is not None:   # an estimate of this block's records contradicts the earlier ones
+                end = ends[b]
+                self._restart_contradicted(float(t[end]))
             else:
-                folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
-                observed = observed_s[measured:folded], observed_alpha[measured:folded]
-                if self._defer_control and end + 1 == len(t):
-                    self._deferred = observed, step   # the chunk's last block: its records leave first
-                    return
-                self._finish_block(*observed, *step)
+                stage = UNTOUCHED
+                if blocks is not None:
+                    limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
+                    resume = False
+                    while limit > b and self._blocks_ready():
+                        b, stage, folded = blocks.run(self, b, limit, folded, measured, resume)
+                        if stage != VERDICT:
+                            break
+                        self._take_verdict()   # then the block's control step, compiled again
+                        stage, resume, measured = CONTROL, True, folded
+                    if stage == DONE:
+                        continue
+                end = ends[b]
+                step = (float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
+                        None if aid is None else aid[end], None if aid_epoch is None else aid_epoch[end])
+                if stage == CONTROL:   # the compiled loop folded and measured the block
+                    self._control_step(*step)
+                elif stage == MOTION:   # … and took its control step but for the motion check
+                    self._check_motion(step[0], step[1], step[3])
+                else:
+                    folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
+                    observed = observed_s[measured:folded], observed_alpha[measured:folded]
+                    if self._defer_control and end + 1 == len(t):
+                        self._deferred = observed, step   # the chunk's last block: its records leave first
+                        return
+                    self._finish_block(*observed, *step)
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
@@ -522,6 +530,13 @@ class AlignmentPipeline:
             self._disturbed_until = t_end + d.hold_s
             self._start_estimators(t_end)
 
+    def _restart_contradicted(self, t_end: float) -> None:
+        """Start the alignment over after the data contradicted its estimates (:mod:`~.align.consistency`)."""
+        self.disturbances += 1
+        self.last_disturbance = f"at t = {t_end:.2f} s {self._contradiction}: alignment restarted"
+        self._contradiction = None
+        self._start_estimators(t_end)
+
     def _record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                 coarse: InertialCoarseAlignment) -> ResultRecord:
         episode = None if self.motion is None else self.motion.episode
@@ -538,12 +553,17 @@ class AlignmentPipeline:
         if episode is not None or t_sample < self._disturbed_until:
             # nothing converged survives a disturbance until the restarted alignment earns it again
             return replace(record, phase="disturbed", converged=False)
-        if record.converged and self.motion is not None and self.motion.suspect:
-            return replace(record, converged=False)   # a base that may be starting to move
-        if record.converged and self.noise_unchecked:
-            # σ rests on the datasheet alone until the data's noise has checked it: a datasheet that claims no
-            # noise gave σ 0.06° at 1 s on a heading 173° off
-            return replace(record, converged=False)
+        suspect = self.motion is not None and self.motion.suspect   # a base that may be starting to move
+        # σ rests on the datasheet alone until the data's noise has checked it: a datasheet that claims no noise gave
+        # σ 0.06° at 1 s on a heading 173° off
+        trusted = record.converged and not suspect and not self.noise_unchecked
+        consistency = self.consistency
+        if consistency is not None and self._contradiction is None and coarse.t0 is not None \
+                and t_sample - coarse.t0 >= consistency.next_s:
+            self._contradiction = consistency.check(t_sample - coarse.t0, coarse.q_b_n0, coarse.sigma,
+                                                    keep=trusted)
+        if record.converged and (not trusted or self._contradiction is not None):
+            return replace(record, converged=False)   # a contradiction restarts the alignment at its block's end
         return record
 
 

@@ -38,7 +38,7 @@ ESTIMATOR_DOCS = {
     "gnss_coarse_rejected": "coarse pairs the fit's screen left out (a glitch of the fixes)",
     "gnss_coarse_reopened": "screens reopened after a run of rejections (a lasting change of the data)",
     "estimator_restarts": "steps that raised or put out a non-finite number: the alignment started over",
-    "disturbances": "episodes of a fixed base that moved",
+    "disturbances": "episodes of a fixed base that moved, and estimates that contradicted their σ (a restart)",
 }
 """The estimators' and the restarting pipeline's counters."""
 
