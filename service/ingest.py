@@ -85,8 +85,7 @@ class Ingest:
         self.t_last: float | None = None    # the newest admitted sample's time (s)
         self._report = report
         self._record_rows = record_rows
-        self._reported: dict[str, str | None] = {"gate": None, "disturbance": None, "alignment": None,
-                                                 "aiding": None, "input": None}
+        self._reported: dict[str, str | None] = {"gate": None, "aiding": None, "input": None}
         self._record_restart = record_restart
         self._defer_control = False   # this pass's (feed_samples)
 
@@ -126,9 +125,7 @@ class Ingest:
     def _hold(self, decoded: Decoded) -> None:
         """A decoder's notices and refusals reported (refusals counted), its aiding epochs into the inbox."""
         for text in decoded.notices:
-            if text != self._reported["input"]:
-                self._reported["input"] = text
-                self._report(text)
+            self._report_new("input", text)
         for text in decoded.refused:
             self.counters.bad_aiding += 1
             self._report(text)
@@ -193,11 +190,15 @@ class Ingest:
         self._report_events()
 
     def _report_events(self) -> None:
-        for source, text in (("gate", self.gate.last_error), ("disturbance", self.pipeline.last_disturbance),
-                             ("alignment", self.pipeline.last_notice), ("aiding", self.aid_stopped_text())):
-            if text and text != self._reported[source]:   # report each new event once
-                self._reported[source] = text
-                self._report(text)
+        """The gate's, the pipeline's and the aiding's new events, each once."""
+        self._report_new("gate", self.gate.last_error)
+        self.alignment.report_events()
+        self._report_new("aiding", self.aid_stopped_text())
+
+    def _report_new(self, source: str, text: str | None) -> None:
+        if text and text != self._reported[source]:
+            self._reported[source] = text
+            self._report(text)
 
     def _feed(self, rows: np.ndarray | None, everything: bool = False) -> list[ResultRecord]:
         """Samples (N, 7) into the pipeline; in the aided mode they wait for their aiding first."""

@@ -24,7 +24,8 @@ def summed(before: dict[str, int], now: dict[str, int]) -> dict[str, int]:
 
 class RestartingPipeline:
     """The current pipeline of ``make``, replaced by a fresh one on :meth:`restart` or when a step fails; the
-    disturbance and aiding counts of the pipelines before carry on. ``report`` gets a line per failure."""
+    disturbance and aiding counts of the pipelines before carry on. ``report`` gets a line per failure and per new
+    event (:meth:`report_events`)."""
 
     def __init__(self, make: Callable[[], AlignmentPipeline], report: Callable[[str], None]) -> None:
         self._make = make
@@ -34,6 +35,7 @@ class RestartingPipeline:
         """Steps that raised or put out a non-finite number: the pipeline started over each time."""
         self._disturbances_before = 0
         self._aiding_before: dict[str, int] = {}
+        self._reported: dict[str, str] = {}   # each source's last event text reported
         self._lock = threading.Lock()   # the status (a Zenoh query's thread too) sees a restart whole
 
     def restart(self) -> None:
@@ -46,6 +48,13 @@ class RestartingPipeline:
             self._disturbances_before += self.pipeline.disturbances
             self._aiding_before = summed(self._aiding_before, self.pipeline.aiding_counters())
             self.pipeline = pipeline
+
+    def report_events(self) -> None:
+        """The pipeline's new events (a disturbance, a notice for the operator), each once through ``report``."""
+        for source, text in (("disturbance", self.pipeline.last_disturbance), ("alignment", self.pipeline.last_notice)):
+            if text and text != self._reported.get(source):
+                self._reported[source] = text
+                self._report(text)
 
     def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, aid: np.ndarray | None = None,
                 defer_control: bool = False) -> tuple[list[ResultRecord], str | None]:

@@ -143,6 +143,7 @@ def replay(imu_csv: str | Path, out_jsonl: str | Path, config: Config, progress:
                         out.write(record.to_json() + "\n")
                         records += 1
                         last = record
+                    alignment.report_events()
                 if len(rows):
                     bar.update(task, completed=min(size, samples * 150), info=f"t = {rows[-1, 0]:.0f} s")
         os.replace(partial, out_path)

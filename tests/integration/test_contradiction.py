@@ -5,7 +5,8 @@ pipeline sees (no gate: a sensor that drops a frame and stamps on), WHEN it is a
 gap contradict the converged ones before it, the alignment restarts within 10 s of the gap and says why, no record
 is converged while further off the truth than the check allows (2 K σ: 0.5° at σ 0.05°), and the alignment after
 the restart converges within 3σ: without the check the missing rotation put the heading 14° off under a σ of
-0.05°, reported converged. GIVEN the whole log, THEN nothing restarts (the check can stay quiet).
+0.05°, reported converged; the replay of such a log says why it restarted. GIVEN the whole log, THEN nothing
+restarts (the check can stay quiet).
 """
 from __future__ import annotations
 
@@ -13,10 +14,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from sinsalign.protocol.imu_log import IMU_COLUMNS, write_header, write_rows
 from sinsalign.service.align.consistency import CONTRADICTION_SIGMAS, FLOOR_DEG
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.config import Config
 from sinsalign.service.pipeline import build_pipeline
+from sinsalign.tools.replay import replay
+from sinsalign.tools.sim.files import log_keys
 from sinsalign.tools.sim.imu import simulate
 from sinsalign.tools.sim.scenarios import get_scenario
 
@@ -69,3 +73,21 @@ def test_the_whole_log_aligns_without_a_restart(swing):
     records, pipeline, truth = aligned(swing, 0)
     assert pipeline.disturbances == 0 and records[-1].converged
     assert heading_errors_deg(records[-1:], truth[-1:])[0] < 3.0 * records[-1].heading_sigma_deg
+
+
+def test_replay_says_why_it_restarted(swing, tmp_path, capsys):
+    """GIVEN a log whose IMU lost 4 samples at 100 s and stamped on (no gap in its time stamps for the gate to see),
+    THEN the replay prints the contradiction and the restart."""
+    scenario, chunk = swing
+    first = np.searchsorted(chunk.t, GAP_AT_S)
+    rows = np.column_stack((chunk.t, chunk.dtheta, chunk.dv))
+    rows = np.concatenate((rows[:first], rows[first + 4:]))
+    rows[first:, 0] -= 4 / scenario.rate_hz
+    log = tmp_path / "stamped-on.csv"
+    with open(log, "w", encoding="utf-8") as stream:
+        write_header(stream, log_keys(scenario, 3), IMU_COLUMNS)
+        write_rows(stream, rows)
+    summary = replay(log, tmp_path / "out.jsonl", Config(), progress=False)
+    err = capsys.readouterr().err
+    assert "the data contradict the fixed-base model" in err and err.count("alignment restarted") == 1
+    assert summary.gate == {} and summary.last.converged
