@@ -6,6 +6,7 @@ samples at whole multiples of the output period), the phase and the ``converged`
 """
 from __future__ import annotations
 
+import math
 from bisect import bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import replace
@@ -560,8 +561,9 @@ class AlignmentPipeline:
         consistency = self.consistency
         if consistency is not None and self._contradiction is None and coarse.t0 is not None \
                 and t_sample - coarse.t0 >= consistency.next_s:
-            self._contradiction = consistency.check(t_sample - coarse.t0, coarse.q_b_n0, coarse.sigma,
-                                                    keep=trusted)
+            elapsed_s = t_sample - coarse.t0
+            self._contradiction = consistency.check(elapsed_s, coarse.q_b_n0, math.hypot(*coarse.sigma(elapsed_s)),
+                                                    coarse.sigmas_rss, keep=trusted)
         if record.converged and (not trusted or self._contradiction is not None):
             return replace(record, converged=False)   # a contradiction restarts the alignment at its block's end
         return record

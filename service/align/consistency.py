@@ -23,9 +23,9 @@ from collections.abc import Callable
 
 import numpy as np
 
-INTERVAL_S = 1.0
+INTERVAL_S = 2.0
 """Alignment time (s) between two estimates kept and checked."""
-LOOKBACK_S = 64
+LOOKBACK_S = 64.0
 """How far back (s) estimates are kept: a contradiction grows for minutes after a lost slice of rotation."""
 CONTRADICTION_SIGMAS = 5.0
 """K: each of two estimates that differ by more than K (σ1 + σ2) may be off by K σ; one of them is."""
@@ -45,37 +45,38 @@ class ConsistencyMonitor:
         self.next_s = INTERVAL_S
         """The alignment time (s) of the next check."""
 
-    def check(self, elapsed_s: float, q_b0_n0: np.ndarray, sigma_deg: Callable[[float], tuple[float, float]],
-              keep: bool) -> str | None:
-        """Compare the estimate q_b0^n0 (4,) of ``elapsed_s`` (s of alignment) with those kept, and keep it if
-        ``keep`` (it was reported converged: σ small enough for its linear model, the data's noise checked);
-        ``sigma_deg(elapsed)``: the 1-sigma (heading, level) errors in degrees at an alignment time. The contradiction
-        found (what to tell the operator), or None."""
+    def check(self, elapsed_s: float, q_b0_n0: np.ndarray, sigma_now_deg: float,
+              sigma_deg: Callable[[np.ndarray], np.ndarray], keep: bool) -> str | None:
+        """Compare the estimate q_b0^n0 (4,) of ``elapsed_s`` (s of alignment), whose σ is ``sigma_now_deg``, with
+        those kept, and keep it if ``keep`` (it was reported converged: σ small enough for its linear model, the
+        data's noise checked). σ is the root sum of squares of the 1-sigma heading and level errors in degrees;
+        ``sigma_deg(elapsed)`` gives it at each of an array of alignment times. The contradiction found (what to
+        tell the operator), or None."""
         self.next_s = elapsed_s + INTERVAL_S
         kept = min(self._count, len(self._elapsed))
-        found = self._contradiction(elapsed_s, q_b0_n0, kept, sigma_deg) if kept else None
+        found = self._contradiction(elapsed_s, q_b0_n0, kept, sigma_now_deg, sigma_deg) if kept else None
         if keep:
             slot = self._count % len(self._elapsed)
             self._q[slot], self._elapsed[slot] = q_b0_n0, elapsed_s
             self._count += 1
         return found
 
-    def _contradiction(self, elapsed_s: float, q: np.ndarray, kept: int,
-                       sigma_deg: Callable[[float], tuple[float, float]]) -> str | None:
+    def _contradiction(self, elapsed_s: float, q: np.ndarray, kept: int, sigma_now_deg: float,
+                       sigma_deg: Callable[[np.ndarray], np.ndarray]) -> str | None:
         # the angle θ of the rotation between two unit quaternions: cos(θ/2) = |q_now · q_then|
         cos_half = np.abs(self._q[:kept] @ q)
-        sigma_now = math.hypot(*sigma_deg(elapsed_s))
         # σ then ≥ 0: only an angle beyond the floor and K σ now can be beyond K (σ then + σ now), and few are
-        least_deg = FLOOR_DEG + CONTRADICTION_SIGMAS * sigma_now
-        least_cos_half = math.cos(0.5 * math.radians(min(least_deg, 180.0)))
-        if cos_half.min() >= least_cos_half:
+        least_deg = FLOOR_DEG + CONTRADICTION_SIGMAS * sigma_now_deg
+        candidates = np.flatnonzero(cos_half < math.cos(0.5 * math.radians(min(least_deg, 180.0))))
+        if len(candidates) == 0:
             return None
-        for k in np.flatnonzero(cos_half < least_cos_half):
-            angle_deg = math.degrees(2.0 * math.acos(min(float(cos_half[k]), 1.0)))
-            allowed = least_deg + CONTRADICTION_SIGMAS * math.hypot(*sigma_deg(float(self._elapsed[k])))
-            if angle_deg > allowed:
-                return (f"the attitude estimate turned {angle_deg:.3g}° in {elapsed_s - self._elapsed[k]:.0f} s "
-                        f"where its σ allowed {allowed:.2g}° ({CONTRADICTION_SIGMAS:g} σ then and now): the data "
-                        "contradict the fixed-base model (samples lost, a turn the gyros did not measure, a wrong "
-                        "rate or scale factor)")
-        return None
+        allowed_deg = least_deg + CONTRADICTION_SIGMAS * sigma_deg(self._elapsed[candidates])
+        angle_deg = np.degrees(2.0 * np.arccos(np.minimum(cos_half[candidates], 1.0)))
+        beyond = np.flatnonzero(angle_deg > allowed_deg)
+        if len(beyond) == 0:
+            return None
+        k = beyond[0]
+        return (f"the attitude estimate turned {angle_deg[k]:.3g}° in {elapsed_s - self._elapsed[candidates[k]]:.0f} "
+                f"s where its σ allowed {allowed_deg[k]:.2g}° ({CONTRADICTION_SIGMAS:g} σ then and now): the data "
+                "contradict the fixed-base model (samples lost, a turn the gyros did not measure, a wrong rate or "
+                "scale factor)")

@@ -159,6 +159,22 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
     T = float(elapsed_s)
     if T <= 0.0:
         return AttitudeSigma(SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG)
+    heading2, level2 = _inertial_alignment_variances(grade, lat, gravity, T)
+    return AttitudeSigma(min(math.sqrt(heading2) / DEG, SIGMA_UNKNOWN_DEG),
+                         min(math.sqrt(level2) / DEG, SIGMA_UNKNOWN_DEG))
+
+
+def inertial_alignment_sigmas(grade: SensorGrade, lat: float, gravity: float, elapsed_s: np.ndarray) -> np.ndarray:
+    """The root sum of squares of the heading and level σ of :func:`inertial_alignment_sigma` (degrees) at each of
+    the alignment times ``elapsed_s`` (s, all positive), in one pass."""
+    heading2, level2 = _inertial_alignment_variances(grade, lat, gravity, elapsed_s)
+    return np.hypot(np.minimum(np.sqrt(heading2) / DEG, SIGMA_UNKNOWN_DEG),
+                    np.minimum(np.sqrt(level2) / DEG, SIGMA_UNKNOWN_DEG))
+
+
+def _inertial_alignment_variances(grade: SensorGrade, lat: float, gravity: float,
+                                  T: float | np.ndarray) -> tuple[float | np.ndarray, float | np.ndarray]:
+    """(heading², level²) in rad² of :func:`inertial_alignment_sigma` after T (s: a float, or an array of them)."""
     terms = _sigma_terms(grade, lat, gravity)
     drift2 = (grade.gyro_bias_rad_s * T) ** 2
     # white noise of density S in α itself: LS over (t, t²) leaves Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
@@ -167,10 +183,8 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
     bounded = grade.base_motion_m_rts**2
     noise_level2 = (terms.acc_level / (terms.gravity2 * T) + grade.gyro_arw_rad_rts**2 * T / 3.0
                     + 3.0 * bounded / (terms.gravity2 * T**3))
-    heading2 = terms.bias2[0] + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2
-    level2 = terms.bias2[1] + drift2 + ESTIMATOR_EFFICIENCY * noise_level2
-    return AttitudeSigma(min(math.sqrt(heading2) / DEG, SIGMA_UNKNOWN_DEG),
-                         min(math.sqrt(level2) / DEG, SIGMA_UNKNOWN_DEG))
+    return (terms.bias2[0] + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2,
+            terms.bias2[1] + drift2 + ESTIMATOR_EFFICIENCY * noise_level2)
 
 
 def heading_noise_variances(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> tuple[float, float]:
