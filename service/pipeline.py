@@ -10,6 +10,7 @@ import math
 from bisect import bisect_right
 from collections.abc import Callable, Iterable
 from dataclasses import replace
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -25,7 +26,14 @@ from .align.disturbance import SUSPECT_FRACTION, MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.noise_check import MIN_OUTLIER_COUNT, OUTLIER_FACTOR, SETTLE_S, VERDICT_STEPS, NoiseMeter
-from .align.sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, SensorGrade, auto_solver
+from .align.sensor_model import (
+    ESTIMATOR_EFFICIENCY,
+    SIGMA_UNKNOWN_DEG,
+    SensorGrade,
+    auto_solver,
+    inertial_alignment_sigma,
+    inertial_alignment_sigmas,
+)
 from .align.solvers import _GAIN_POLICY, CentredWahba, RecursiveK
 from .config import Config, ConfigError
 from .modes import MODES
@@ -448,9 +456,12 @@ class AlignmentPipeline:
 
     def _take_verdict(self) -> None:
         """The noise meter's verdict, due every :data:`VERDICT_STEPS` observations."""
-        if self.coarse.solver.n_obs:
-            self.noise.C_n0_b0 = dcm_from_quat(self.coarse.q_b_n0).T
-        verdict = self.noise.verdict(self.grade)
+        coarse = self.coarse
+        heading_sigma_rad = None
+        if coarse.solver.n_obs:
+            self.noise.C_n0_b0 = dcm_from_quat(coarse.q_b_n0).T
+            heading_sigma_rad = coarse.sigma(coarse.t - coarse.t0)[0] * DEG
+        verdict = self.noise.verdict(self.grade, heading_sigma_rad)
         self.noise_unchecked = self.noise_unchecked and verdict is None
         if verdict is not None and verdict.grade != self.sigma_grade:
             self.sigma_grade = verdict.grade
@@ -464,6 +475,11 @@ class AlignmentPipeline:
         self.coarse.report_with(self.sigma_grade)
         if isinstance(self.fine, FineAlignment):
             self.fine.report_with(self.sigma_grade)
+        # estimates move with the noise, not with a bias (its effect all but constant): the consistency check takes σ
+        # with the datasheet's bias, whatever bias the data show (a lost slice of rotation shows as one at first)
+        bias = self.grade.gyro_bias_rad_s
+        self._moving_grade = (self.sigma_grade if self.sigma_grade.gyro_bias_rad_s == bias
+                              else replace(self.sigma_grade, gyro_bias_rad_s=bias))
 
     def _aid(self, samples: np.ndarray) -> np.ndarray | None:
         """The aiding values of the samples (N, ``aid_width``: every kind's, in order), None without aiding; with the
@@ -561,9 +577,12 @@ class AlignmentPipeline:
         consistency = self.consistency
         if consistency is not None and self._contradiction is None and coarse.t0 is not None \
                 and t_sample - coarse.t0 >= consistency.next_s:
-            elapsed_s = t_sample - coarse.t0
-            self._contradiction = consistency.check(elapsed_s, coarse.q_b_n0, math.hypot(*coarse.sigma(elapsed_s)),
-                                                    coarse.sigmas_rss, keep=trusted)
+            elapsed_s, grade, site = t_sample - coarse.t0, self._moving_grade, self.site
+            sigma = inertial_alignment_sigma(grade, site.lat, site.gravity, elapsed_s)
+            self._contradiction = consistency.check(elapsed_s, coarse.q_b_n0,
+                                                    math.hypot(sigma.heading_deg, sigma.level_deg),
+                                                    partial(inertial_alignment_sigmas, grade, site.lat, site.gravity),
+                                                    keep=trusted)
         if record.converged and (not trusted or self._contradiction is not None):
             return replace(record, converged=False)   # a contradiction restarts the alignment at its block's end
         return record

@@ -90,7 +90,8 @@ cdef class FixedBaseBlocks:
     cdef int handover   # 0 by σ, 1 at a time
     cdef double handover_time_s, handover_min_s, handover_sigma_deg, sigma_unknown_deg, efficiency
     # the estimators' arrays, for their life (a restart builds new ones and a new loop), and the chunk's
-    cdef double[:, ::1] alpha_sum, beta_sum, last_sums, ring_alpha, ring_beta, stored_dalpha
+    cdef double[:, ::1] alpha_sum, beta_sum, ring_alpha, ring_beta, stored_dalpha
+    cdef double[::1] moments
     cdef const long[::1] lags
     cdef double[::1] sums, counts, ring_elapsed, stored_dt
     cdef double[:, :, ::1] ring_C
@@ -121,7 +122,7 @@ cdef class FixedBaseBlocks:
         self.with_noise = noise is not None
         if self.with_noise:
             self.settle_steps, self.outlier_factor, self.min_outlier_count, self.verdict_steps = noise_constants
-            self.alpha_sum, self.beta_sum, self.last_sums = noise._alpha_sum, noise._beta_sum, noise._last_sums
+            self.alpha_sum, self.beta_sum, self.moments = noise._alpha_sum, noise._beta_sum, noise._moments
             self.lags, self.sums, self.counts = noise._lags, noise._sums, noise._counts
         self.with_motion = motion is not None
         if self.with_motion:
@@ -233,7 +234,8 @@ cdef class FixedBaseBlocks:
         alpha_step[0], alpha_step[1], alpha_step[2] = alpha_step_view[0], alpha_step_view[1], alpha_step_view[2]
         cdef double t_step = pipeline._t_step, next_check_s = pipeline._next_check_s
         # the noise meter
-        cdef double[:, ::1] alpha_sum, beta_sum, last_sums
+        cdef double[:, ::1] alpha_sum, beta_sum
+        cdef double[::1] moments
         cdef const long[::1] lags
         cdef double[::1] sums, counts
         cdef const double[:, :] C_rough_view
@@ -242,7 +244,7 @@ cdef class FixedBaseBlocks:
         cdef long steps = 0, bad_until = 0, outliers = 0
         cdef bint verdict_due = False
         if self.with_noise:
-            alpha_sum, beta_sum, last_sums = self.alpha_sum, self.beta_sum, self.last_sums
+            alpha_sum, beta_sum, moments = self.alpha_sum, self.beta_sum, self.moments
             lags, sums, counts = self.lags, self.sums, self.counts
             steps, bad_until = noise.steps, noise._bad_until
             if noise.C_n0_b0 is not None:
@@ -314,7 +316,7 @@ cdef class FixedBaseBlocks:
                 if self.with_noise and folded > measured:
                     outliers += _hadamard_feed(self.lat, self.gravity, &observed_s[measured],
                                                &observed_alpha[measured, 0], folded - measured, &alpha_sum[0, 0],
-                                               &beta_sum[0, 0], alpha_sum.shape[0], &last_sums[0, 0], &lags[0],
+                                               &beta_sum[0, 0], alpha_sum.shape[0], &moments[0], &lags[0],
                                                lags.shape[0], &sums[0], &counts[0],
                                                C_rough if with_rough else NULL, &steps, &bad_until, self.settle_steps,
                                                self.outlier_factor, self.min_outlier_count, self.verdict_steps,

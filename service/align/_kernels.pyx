@@ -80,7 +80,7 @@ def store_and_gain(double lat, double gravity, double elapsed_s, const double[::
 
 
 def hadamard_feed(double lat, double gravity, const double[::1] elapsed_s, const double[:, ::1] alpha_b0,
-                  double[:, ::1] alpha_sum, double[:, ::1] beta_sum, double[:, ::1] last_sums,
+                  double[:, ::1] alpha_sum, double[:, ::1] beta_sum, double[::1] moments,
                   const long[::1] lags, double[::1] sums, double[::1] counts, C_n0_b0, long steps, long bad_until,
                   long settle_steps, double outlier_factor, long min_outlier_count, long verdict_steps):
     """NoiseMeter.feed's loop over a block's observations (elapsed (M,) s, α (M, 3) m/s in b0 axes), updating the
@@ -91,7 +91,7 @@ def hadamard_feed(double lat, double gravity, const double[::1] elapsed_s, const
     cdef int i, j
     cdef bint verdict_due = False
     cdef long outliers, count = elapsed_s.shape[0]
-    if alpha_b0.shape[0] != count or alpha_sum.shape[0] != beta_sum.shape[0] or last_sums.shape[0] != 2 \
+    if alpha_b0.shape[0] != count or alpha_sum.shape[0] != beta_sum.shape[0] or moments.shape[0] != 23 \
             or sums.shape[0] != lags.shape[0] or counts.shape[0] != lags.shape[0]:
         raise ValueError("hadamard_feed: one α row per time, rings of one capacity, one sum and count per lag")
     if C_n0_b0 is not None:   # any strides in (the meter is given a transposed view): copied as they read
@@ -102,7 +102,7 @@ def hadamard_feed(double lat, double gravity, const double[::1] elapsed_s, const
     if count == 0:
         return steps, bad_until, 0, False
     outliers = _hadamard_feed(lat, gravity, &elapsed_s[0], &alpha_b0[0, 0], count, &alpha_sum[0, 0],
-                              &beta_sum[0, 0], alpha_sum.shape[0], &last_sums[0, 0], &lags[0], lags.shape[0],
+                              &beta_sum[0, 0], alpha_sum.shape[0], &moments[0], &lags[0], lags.shape[0],
                               &sums[0], &counts[0], C if C_n0_b0 is not None else NULL, &steps, &bad_until,
                               settle_steps, outlier_factor, min_outlier_count, verdict_steps, &verdict_due)
     return steps, bad_until, outliers, verdict_due

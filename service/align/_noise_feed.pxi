@@ -9,12 +9,13 @@ cdef inline long _pymod(long a, long n) noexcept nogil:
 
 
 cdef long _hadamard_feed(double lat, double gravity, const double* elapsed_s, const double* alpha_b0, long count,
-                         double* alpha_sum, double* beta_sum, long capacity, double* last_sums, const long* lags,
+                         double* alpha_sum, double* beta_sum, long capacity, double* moments, const long* lags,
                          long n_lags, double* sums, double* counts, const double* C, long* steps, long* bad_until,
                          long settle_steps, double outlier_factor, long min_outlier_count, long verdict_steps,
                          bint* verdict_due) noexcept nogil:
     """The meter's rings and sums updated in place by ``count`` observations (elapsed (count,), α (count, 3)), with
-    the rough C_n0^b0 (9) or NULL; ``steps`` and ``bad_until`` advanced, ``verdict_due`` set when a step count that
+    the rough C_n0^b0 (9) or NULL; ``moments`` (:data:`noise_check.MOMENTS`): Σ α, Σ β (their running sums, the
+    rings' newest entries), Σ t α, Σ t β, Σ t² α, Σ t² β (3 each), then Σ tᵏ for k = 0..4; ``steps`` and ``bad_until`` advanced, ``verdict_due`` set when a step count that
     is a multiple of ``verdict_steps`` is reached; returns the outliers found."""
     cdef long m, k, j, i, r, slot, lag
     cdef double stencil[5]
@@ -23,7 +24,7 @@ cdef long _hadamard_feed(double lat, double gravity, const double* elapsed_s, co
     cdef double d[3]
     cdef double e[3]
     cdef double up[3]
-    cdef double norm, dd, du, square
+    cdef double norm, dd, du, square, t
     cdef const double* a
     cdef long outliers = 0
     for m in range(count):
@@ -31,11 +32,21 @@ cdef long _hadamard_feed(double lat, double gravity, const double* elapsed_s, co
         a = alpha_b0 + 3 * m
         _beta_fixed(lat, gravity, elapsed_s[m], beta)
         slot = k % capacity
+        t = elapsed_s[m]
         for i in range(3):
-            last_sums[i] += a[i]
-            last_sums[3 + i] += beta[i]
-            alpha_sum[3 * slot + i] = last_sums[i]
-            beta_sum[3 * slot + i] = last_sums[3 + i]
+            moments[i] += a[i]
+            moments[3 + i] += beta[i]
+            moments[6 + i] += t * a[i]
+            moments[9 + i] += t * beta[i]
+            moments[12 + i] += t * t * a[i]
+            moments[15 + i] += t * t * beta[i]
+            alpha_sum[3 * slot + i] = moments[i]
+            beta_sum[3 * slot + i] = moments[3 + i]
+        moments[18] += 1.0
+        moments[19] += t
+        moments[20] += t * t
+        moments[21] += t * t * t
+        moments[22] += t * t * t * t
         steps[0] += 1
         verdict_due[0] = verdict_due[0] or steps[0] % verdict_steps == 0
         if k < 4 * lags[0]:

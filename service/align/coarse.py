@@ -15,7 +15,7 @@ import numpy as np
 
 from ._attitude import chained_quaternion
 from .observations import ObservationSource
-from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma, inertial_alignment_sigmas
+from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
 from .solvers import CentredWahba, RecursiveK, WhitenedWahba
 from .strapdown import InertialIntegrator
 from .swing_bias import SwingBias
@@ -224,11 +224,6 @@ class InertialCoarseAlignment:
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
         sigma = inertial_alignment_sigma(self.sigma_grade, self._lat, self._gravity, elapsed_s)
         return sigma.heading_deg, sigma.level_deg
-
-    def sigmas_rss(self, elapsed_s: np.ndarray) -> np.ndarray:
-        """The root sum of squares of heading and level σ (degrees) that :meth:`sigma` gives at each of the alignment
-        times ``elapsed_s`` (s, all positive), with the figures of now."""
-        return inertial_alignment_sigmas(self.sigma_grade, self._lat, self._gravity, elapsed_s)
 
     def solution_at(self, t: float, q_b_b0: np.ndarray) -> AttitudeSolution:
         """The attitude C_b^n at sample time t whose body attitude is C_{b}^{b0} = ``q_b_b0``."""

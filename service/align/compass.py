@@ -156,6 +156,7 @@ class CompassLoops:
     def __init__(self, site: Site, grade: SensorGrade, schedule: GainSchedule) -> None:
         self.site = site
         self.grade = grade
+        self.bias_grade = grade   # the biases σ reports: the datasheet's, or the larger the data show at any time
         self.schedule = schedule
         self.gravity = site.gravity
         R_M, R_N = radii(site.lat)
@@ -328,9 +329,10 @@ class CompassLoops:
 
     def sigma(self, state: CompassState) -> AttitudeSigma:
         """1-sigma heading and level error (deg): bias limit, azimuth offset and the loop's noise."""
-        bias_heading, bias_level = bias_limit_rad(self.grade, self.site.lat, self.gravity)
+        bias_heading, bias_level = bias_limit_rad(self.bias_grade, self.site.lat, self.gravity)
         azimuth_sigma = _geometric(self.schedule.time_s, self.schedule.azimuth_sigma, state.t_loop_s)
-        offset = 2.0 * self.grade.gyro_bias_rad_s / azimuth_sigma if state.azimuth_on and azimuth_sigma > 0 else 0.0
+        offset = (2.0 * self.bias_grade.gyro_bias_rad_s / azimuth_sigma if state.azimuth_on and azimuth_sigma > 0
+                  else 0.0)
         P = state.P
         heading2 = bias_heading**2 + offset**2 + ESTIMATOR_EFFICIENCY * float(P[PU, PU])
         level2 = bias_level**2 + ESTIMATOR_EFFICIENCY * 0.5 * (float(P[PE, PE]) + float(P[PN, PN]))

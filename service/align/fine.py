@@ -46,7 +46,8 @@ class FineAlignment:
     def report_with(self, grade: SensorGrade) -> None:
         """The loops' covariance runs with ``grade`` (the noise the data show) once they start; after that it runs
         on with the grade it started with, so live passes sliced over many steps propagate it as offline passes
-        run at once do."""
+        run at once do. The biases σ adds to it (no part of the propagation) follow ``grade`` at any time."""
+        self.loops.bias_grade = grade
         if not self.active:
             self.loops.grade = grade
 

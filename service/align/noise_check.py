@@ -33,7 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._kernels import hadamard_feed, noise_figures
-from .conventions import DRH_TO_RRS, UG_TO_MS2
+from .conventions import DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
+from .earth import OMEGA_IE
 from .sensor_model import SMALLEST_FIGURE, SensorGrade
 
 LAGS_S = (1.0, 2.0, 4.0, 8.0, 16.0)
@@ -52,6 +53,17 @@ VERDICT_STEPS = 10
 """The pipeline asks for a verdict every this many control steps (once a second of 0.1-s steps)."""
 ALARM_FACTOR = 2.0
 """A density surely this many times the datasheet's (its lower bound) is worth telling the operator."""
+MOMENTS = 23
+"""The meter's running sums (Σ α, Σ β) and the moments of the residual's trend (Σ t α, Σ t β, Σ t² α, Σ t² β, Σ tᵏ
+for k = 0..4): see :meth:`NoiseMeter.trend`."""
+TREND_EVERY_STEPS = 100
+"""Observations between two looks at the residual's trend (10 s at 0.1-s steps): it grows over minutes."""
+MIN_TREND_S = 30.0
+"""Seconds of observations before the trend is judged."""
+BIAS_SIGMAS = 3.0
+"""A datasheet's bias is a 1-σ figure per axis: a sensor's may be this many times it."""
+TREND_SIGMAS = 4.0
+"""The noise's share of the fitted trend allowed, in its standard deviations."""
 MIN_MEAN_SQUARE = 1e-100
 """(m/s)²: the least a lag's mean square weighs the fit as, so that a lag whose squares are all zero (a constant
 signal) weighs finitely (its square would underflow to an infinite weight)."""
@@ -93,7 +105,7 @@ class NoiseMeter:
         self._capacity = 4 * int(self._lags.max()) + 1
         self._alpha_sum = np.zeros((self._capacity, 3))   # running sums of α and β, m/s (one term per step)
         self._beta_sum = np.zeros((self._capacity, 3))
-        self._last_sums = np.zeros((2, 3))
+        self._moments = np.zeros(MOMENTS)   # the running sums and the trend's moments (_noise_feed.pxi)
         self._sums = np.zeros(len(self._lags))
         self._counts = np.zeros(len(self._lags))
         self.steps = 0
@@ -101,6 +113,9 @@ class NoiseMeter:
         self.outliers = 0
         self.C_n0_b0: np.ndarray | None = None
         """The rough estimate that takes the reference's curvature out (None: left in, at the start)."""
+        self.bias_rad_s = 0.0
+        """The least gyro bias (rad/s) the residual's trend has shown beyond the datasheet's (0: none)."""
+        self._trend_at = 0   # the step count of the last look at the trend
 
     def feed(self, elapsed_s: np.ndarray, alpha_b0: np.ndarray) -> bool:
         """α (M, 3) m/s in b0 axes at M observations, ``elapsed_s`` (M,) after the start, in order; whether the step
@@ -111,7 +126,7 @@ class NoiseMeter:
         reaches into an event's span are left out."""
         self.steps, self._bad_until, outliers, verdict_due = hadamard_feed(
             self._lat, self._gravity, np.ascontiguousarray(elapsed_s, dtype=float),
-            np.ascontiguousarray(alpha_b0, dtype=float), self._alpha_sum, self._beta_sum, self._last_sums,
+            np.ascontiguousarray(alpha_b0, dtype=float), self._alpha_sum, self._beta_sum, self._moments,
             self._lags, self._sums, self._counts, self.C_n0_b0, self.steps, self._bad_until,
             round(SETTLE_S / self.step_s), OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS)
         self.outliers += outliers
@@ -127,12 +142,58 @@ class NoiseMeter:
                             MIN_SPAN_S, MIN_MEAN_SQUARE)
         return None if fit is None else NoiseFigures(*fit)
 
-    def verdict(self, stated: SensorGrade) -> NoiseVerdict | None:
+    def trend(self) -> tuple[float, float] | None:
+        """The residual's trend over every observation, under the rough estimate: (the east part of the t²
+        coefficient of C_b0^n0 α − β (m/s³, n0 axes), the span (s)); None without an estimate or 3 observations.
+
+        A constant gyro bias tilts the integrated attitude at its rate. Its east part the fit takes as heading (the
+        bias limit); its north part ε_N adds −½ g ε_N t² to the east residual, which no attitude can take (a tilt of
+        the estimate is linear in t, a heading error turns the reference's east t² term north). So the east t²
+        coefficient measures ε_N whatever the estimate's own error. The least-squares fit of c₀ + c₁ t + c₂ t² comes
+        from the moments kept by the compiled loop; its normal matrix is scaled by the span so that hours of data
+        stay well conditioned."""
+        m = self._moments
+        count, t1 = m[18], m[19]
+        if self.C_n0_b0 is None or count < 3:
+            return None
+        span_s = 2.0 * t1 / count   # observations from the start at a fixed step
+        scale = np.array([1.0, 1.0 / span_s, 1.0 / span_s**2])
+        normal = np.array([[m[18], m[19], m[20]], [m[19], m[20], m[21]], [m[20], m[21], m[22]]])
+        C_b0_n0 = self.C_n0_b0.T
+        east = np.array([C_b0_n0[0] @ m[6 * k:6 * k + 3] - m[6 * k + 3] for k in range(3)])
+        y = np.linalg.solve(normal * np.outer(scale, scale), east * scale)
+        return float(y[2] * scale[2]), span_s
+
+    def _judge_bias(self, stated: SensorGrade, figures: NoiseFigures, heading_sigma_rad: float) -> None:
+        """Raise :attr:`bias_rad_s` to the north gyro bias the residual's trend shows (:meth:`trend`), if it is surely
+        beyond what the datasheet's biases and the noise can make of it: the datasheet's figure then understates
+        every axis's, the east one's that sets the heading's limit too. The trend's standard deviation from the
+        noise, for a fit of a quadratic over a span T: 180 S / T⁵ (a bounded disturbance of α), 30/7 q / T³ (white
+        accelerometer noise: α walks) and 5/14 g² N² / T (the gyro's walk: α's error is its integral). The estimate's
+        heading error δψ (``heading_sigma_rad`` its σ) leaves ½ g Ω cos L δψ² of the reference's east t² term."""
+        found = self.trend()
+        if found is None or found[1] < MIN_TREND_S:
+            return
+        c2, span_s = abs(found[0]), found[1]
+        g = self._gravity
+        noise = math.sqrt(180.0 * max(figures.s, 0.0) / span_s**5 + 30.0 / 7.0 * max(figures.q, 0.0) / span_s**3
+                          + 5.0 / 14.0 * g * g * max(figures.n2, 0.0) / span_s)
+        # the north gyro at the stated bias, and an accelerometer's bias turning with the Earth
+        stated_c2 = 0.5 * (g * stated.gyro_bias_rad_s + OMEGA_IE * stated.acc_bias_ms2)
+        estimate = 0.5 * g * OMEGA_IE * math.cos(self._lat) * (TREND_SIGMAS * heading_sigma_rad) ** 2
+        if c2 > BIAS_SIGMAS * stated_c2 + TREND_SIGMAS * noise + estimate:
+            self.bias_rad_s = max(self.bias_rad_s, 2.0 * (c2 - TREND_SIGMAS * noise) / g)
+
+    def verdict(self, stated: SensorGrade, heading_sigma_rad: float | None = None) -> NoiseVerdict | None:
         """The grade σ should use: the datasheet's, with each density the data tell apart from it replaced by the
-        data's, and the bounded disturbance they show; None before the meter has figures."""
+        data's, the bounded disturbance they show, and a gyro bias the residual's trend shows surely larger (judged
+        when the rough estimate's heading σ, ``heading_sigma_rad``, is given); None before the meter has figures."""
         f = self.figures()
         if f is None:
             return None
+        if heading_sigma_rad is not None and self.steps - self._trend_at >= TREND_EVERY_STEPS:
+            self._trend_at = self.steps
+            self._judge_bias(stated, f, heading_sigma_rad)
         # the white noise and the bounded disturbance are measured at these lags, and an overconfident σ is the
         # worse failure: σ takes their upper bounds, whatever the datasheet says; the gyro's walk shows only at the
         # longest lags, too faintly to lower a datasheet's figure: it raises it where the data show it surely louder
@@ -141,9 +202,13 @@ class NoiseMeter:
         bounded = f.s + SIGNIFICANCE * f.s_se
         # (the figures are ≥ 0: math's square root is numpy's, correctly rounded; the grade built directly, as
         # dataclasses.replace would, without its look at the fields)
-        grade = SensorGrade(stated.gyro_bias_rad_s, max(math.sqrt(n2), SMALLEST_FIGURE), stated.acc_bias_ms2,
-                            max(math.sqrt(q), SMALLEST_FIGURE), math.sqrt(bounded))
+        grade = SensorGrade(max(stated.gyro_bias_rad_s, self.bias_rad_s), max(math.sqrt(n2), SMALLEST_FIGURE),
+                            stated.acc_bias_ms2, max(math.sqrt(q), SMALLEST_FIGURE), math.sqrt(bounded))
         parts = []
+        if self.bias_rad_s > stated.gyro_bias_rad_s:
+            parts.append(f"a gyro bias of at least {self.bias_rad_s / DH_TO_RS:.3g}°/h, "
+                         f"{self.bias_rad_s / stated.gyro_bias_rad_s:.3g}× the datasheet's "
+                         f"{stated.gyro_bias_rad_s / DH_TO_RS:.3g}°/h (gyro_bias_deg_h)")
         if grade.gyro_arw_rad_rts > ALARM_FACTOR * stated.gyro_arw_rad_rts:
             parts.append(f"gyro noise {grade.gyro_arw_rad_rts / DRH_TO_RRS:.3g}°/√h, "
                          f"{grade.gyro_arw_rad_rts / stated.gyro_arw_rad_rts:.3g}× the datasheet's "

@@ -119,8 +119,9 @@ class _SigmaTerms:
 
 
 def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
-    """The terms of a grade and site: the two last asked for kept by identity (a record asks for the datasheet's and
-    the measured grade's, and the measured one changes at every noise verdict), the site's part cached."""
+    """The terms of a grade and site: the three last asked for kept by identity (a record asks for the datasheet's and
+    the measured grade's, the consistency check for the measured one with the datasheet's bias, and the measured
+    one changes at every noise verdict), the site's part cached."""
     global _recent_terms
     for recent in _recent_terms:
         if grade is recent[0] and lat == recent[1] and gravity == recent[2]:
@@ -130,7 +131,7 @@ def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
                         1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2,
                         320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * cos_lat) ** 2,
                         4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
-    _recent_terms = ((grade, lat, gravity, terms), _recent_terms[0])
+    _recent_terms = ((grade, lat, gravity, terms), *_recent_terms[:-1])
     return terms
 
 
@@ -142,7 +143,7 @@ def _bias_terms(acc_bias_ms2: float, gyro_bias_rad_s: float, lat: float,
     return (float(heading), acc_bias_ms2 / gravity), OMEGA_IE * np.cos(lat), np.cos(lat)
 
 
-_recent_terms: tuple = ((None, np.nan, np.nan, None),) * 2
+_recent_terms: tuple = ((None, np.nan, np.nan, None),) * 3
 
 
 def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> AttitudeSigma:

@@ -139,14 +139,17 @@ def test_the_motion_ring_entry_and_speed_are_the_separate_kernels_to_the_bit():
 
 
 def reference_meter(meter: NoiseMeter, elapsed_s: np.ndarray, alpha: np.ndarray) -> tuple[np.ndarray, ...]:
-    """The meter's loop written per observation in numpy: (sums, counts, outliers)."""
+    """The meter's loop written per observation in numpy: (sums, counts, outliers, moments)."""
     lags = meter._lags
     capacity = 4 * int(lags.max()) + 1
     offsets = np.arange(5)[None, :] * lags[:, None]
     alpha_sum, beta_sum, last = np.zeros((capacity, 3)), np.zeros((capacity, 3)), np.zeros((2, 3))
     sums, counts, outliers, bad_until = np.zeros(len(lags)), np.zeros(len(lags)), 0, -1
+    trend = np.zeros((3, 2, 3))   # Σ tᵏ α, Σ tᵏ β for k = 0..2
     for k, (t, a) in enumerate(zip(elapsed_s, alpha, strict=True)):
-        last += np.stack((a, beta_fixed(meter._lat, meter._gravity, t)))
+        pair = np.stack((a, beta_fixed(meter._lat, meter._gravity, t)))
+        last += pair
+        trend += np.array([1.0, t, t * t])[:, None, None] * pair
         alpha_sum[k % capacity], beta_sum[k % capacity] = last
         ready = k >= 4 * lags
         if not ready[0]:
@@ -164,7 +167,8 @@ def reference_meter(meter: NoiseMeter, elapsed_s: np.ndarray, alpha: np.ndarray)
         clean = ready & (k - 4 * lags > bad_until)
         sums[clean] += squares[clean]
         counts[clean] += 1
-    return sums, counts, outliers
+    moments = np.concatenate((trend.ravel(), [np.sum(elapsed_s**k) for k in range(5)]))
+    return sums, counts, outliers, moments
 
 
 def meter_stream(seconds: float, step_s: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
@@ -184,10 +188,11 @@ def test_the_noise_meters_loop_is_the_numpy_stencil(with_estimate):
     meter = NoiseMeter(0.1, 0.6, Site(0.6).gravity)
     if with_estimate:
         meter.C_n0_b0 = dcm_from_euler(0.01, -0.02, 1.1) @ dcm_from_euler(0.0, 0.0, 0.03)
-    sums, counts, outliers = reference_meter(meter, t, alpha)
+    sums, counts, outliers, moments = reference_meter(meter, t, alpha)
     meter.feed(t, alpha)
     assert meter.outliers == outliers >= 2   # each knock's stencils stand out
     assert meter._counts.tolist() == counts.tolist()
+    np.testing.assert_allclose(meter._moments, moments, rtol=1e-12)
     # each stencil takes differences of running sums some 1e6 times its result: the order of its five terms (numpy's
     # BLAS against the loop) moves the last 1e-9 of it, as any other order would
     np.testing.assert_allclose(meter._sums, sums, rtol=1e-7)
@@ -201,6 +206,7 @@ def test_the_noise_meter_gives_the_same_bits_however_the_stream_is_split():
     cuts = np.unique(RNG.integers(0, len(t), 40))
     due = [split.feed(t[a:b], alpha[a:b]) for a, b in zip((0, *cuts), (*cuts, len(t)), strict=True)]
     assert split._sums.tobytes() == whole._sums.tobytes() and split._counts.tobytes() == whole._counts.tobytes()
+    assert split._moments.tobytes() == whole._moments.tobytes()
     assert (split.steps, split.outliers) == (whole.steps, whole.outliers)
     # a verdict is due in every call that crossed a multiple of ten observations
     ends = np.array([*cuts, len(t)])
