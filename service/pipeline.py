@@ -163,6 +163,7 @@ class AlignmentPipeline:
                               f"period {self.sample_period_s:g} s ({rate_hz:g} Hz)")
         self.period_s = config.output.period_s
         self.site = site
+        self._lat_gravity = (site.lat, site.gravity)   # the site's gravity is a formula: once
         self.grade = grade_from(config, datasheet)
         # the coarse solver that runs: alignment.solver, or the one "auto" picks for this datasheet
         self.solver_name = (auto_solver(self.grade, site.lat, site.gravity, a.converged_heading_sigma_deg)
@@ -460,7 +461,7 @@ class AlignmentPipeline:
         heading_sigma_rad = None
         if coarse.solver.n_obs:
             self.noise.C_n0_b0 = dcm_from_quat(coarse.q_b_n0).T
-            heading_sigma_rad = coarse.sigma(coarse.t - coarse.t0)[0] * DEG
+            heading_sigma_rad = lambda: coarse.sigma(coarse.t - coarse.t0)[0] * DEG   # noqa: E731 (asked rarely)
         verdict = self.noise.verdict(self.grade, heading_sigma_rad)
         self.noise_unchecked = self.noise_unchecked and verdict is None
         if verdict is not None and verdict.grade != self.sigma_grade:
@@ -577,11 +578,11 @@ class AlignmentPipeline:
         consistency = self.consistency
         if consistency is not None and self._contradiction is None and coarse.t0 is not None \
                 and t_sample - coarse.t0 >= consistency.next_s:
-            elapsed_s, grade, site = t_sample - coarse.t0, self._moving_grade, self.site
-            sigma = inertial_alignment_sigma(grade, site.lat, site.gravity, elapsed_s)
+            elapsed_s, grade, (lat, gravity) = t_sample - coarse.t0, self._moving_grade, self._lat_gravity
+            sigma = inertial_alignment_sigma(grade, lat, gravity, elapsed_s)
             self._contradiction = consistency.check(elapsed_s, coarse.q_b_n0,
                                                     math.hypot(sigma.heading_deg, sigma.level_deg),
-                                                    partial(inertial_alignment_sigmas, grade, site.lat, site.gravity),
+                                                    partial(inertial_alignment_sigmas, grade, lat, gravity),
                                                     keep=trusted)
         if record.converged and (not trusted or self._contradiction is not None):
             return replace(record, converged=False)   # a contradiction restarts the alignment at its block's end

@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-INTERVAL_S = 2.0
+INTERVAL_S = 4.0
 """Alignment time (s) between two estimates kept and checked."""
 LOOKBACK_S = 64.0
 """How far back (s) estimates are kept: a contradiction grows for minutes after a lost slice of rotation."""

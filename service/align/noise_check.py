@@ -28,6 +28,7 @@ are left out. Memory is O(1).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -152,17 +153,23 @@ class NoiseMeter:
         coefficient measures ε_N whatever the estimate's own error. The least-squares fit of c₀ + c₁ t + c₂ t² comes
         from the moments kept by the compiled loop; its normal matrix is scaled by the span so that hours of data
         stay well conditioned."""
-        m = self._moments
+        m = self._moments.tolist()
         count, t1 = m[18], m[19]
         if self.C_n0_b0 is None or count < 3:
             return None
         span_s = 2.0 * t1 / count   # observations from the start at a fixed step
-        scale = np.array([1.0, 1.0 / span_s, 1.0 / span_s**2])
-        normal = np.array([[m[18], m[19], m[20]], [m[19], m[20], m[21]], [m[20], m[21], m[22]]])
-        C_b0_n0 = self.C_n0_b0.T
-        east = np.array([C_b0_n0[0] @ m[6 * k:6 * k + 3] - m[6 * k + 3] for k in range(3)])
-        y = np.linalg.solve(normal * np.outer(scale, scale), east * scale)
-        return float(y[2] * scale[2]), span_s
+        # the moments of u = t / span: the normal matrix [[s0, s1, s2], [s1, s2, s3], [s2, s3, s4]] and the east
+        # residual's [r0, r1, r2]; c₂ of t is the last unknown of u over span², by Cramer's rule
+        s0, s1, s2, s3, s4 = (m[18 + k] / span_s**k for k in range(5))
+        east_b0 = self.C_n0_b0[:, 0].tolist()   # the n0 east axis in b0: C_b0^n0's first row
+        r0, r1, r2 = (sum(e * a for e, a in zip(east_b0, m[6 * k:6 * k + 3], strict=True)) - m[6 * k + 3]
+                      for k in range(3))
+        r1, r2 = r1 / span_s, r2 / span_s**2
+        det = s0 * (s2 * s4 - s3 * s3) - s1 * (s1 * s4 - s3 * s2) + s2 * (s1 * s3 - s2 * s2)
+        if not det > 0.0:
+            return None
+        c2_u = (s0 * (s2 * r2 - r1 * s3) - s1 * (s1 * r2 - r1 * s2) + r0 * (s1 * s3 - s2 * s2)) / det
+        return c2_u / span_s**2, span_s
 
     def _judge_bias(self, stated: SensorGrade, figures: NoiseFigures, heading_sigma_rad: float) -> None:
         """Raise :attr:`bias_rad_s` to the north gyro bias the residual's trend shows (:meth:`trend`), if it is surely
@@ -184,16 +191,18 @@ class NoiseMeter:
         if c2 > BIAS_SIGMAS * stated_c2 + TREND_SIGMAS * noise + estimate:
             self.bias_rad_s = max(self.bias_rad_s, 2.0 * (c2 - TREND_SIGMAS * noise) / g)
 
-    def verdict(self, stated: SensorGrade, heading_sigma_rad: float | None = None) -> NoiseVerdict | None:
+    def verdict(self, stated: SensorGrade,
+                heading_sigma_rad: Callable[[], float] | None = None) -> NoiseVerdict | None:
         """The grade σ should use: the datasheet's, with each density the data tell apart from it replaced by the
         data's, the bounded disturbance they show, and a gyro bias the residual's trend shows surely larger (judged
-        when the rough estimate's heading σ, ``heading_sigma_rad``, is given); None before the meter has figures."""
+        when ``heading_sigma_rad`` gives the rough estimate's heading σ, asked every :data:`TREND_EVERY_STEPS`);
+        None before the meter has figures."""
         f = self.figures()
         if f is None:
             return None
         if heading_sigma_rad is not None and self.steps - self._trend_at >= TREND_EVERY_STEPS:
             self._trend_at = self.steps
-            self._judge_bias(stated, f, heading_sigma_rad)
+            self._judge_bias(stated, f, heading_sigma_rad())
         # the white noise and the bounded disturbance are measured at these lags, and an overconfident σ is the
         # worse failure: σ takes their upper bounds, whatever the datasheet says; the gyro's walk shows only at the
         # longest lags, too faintly to lower a datasheet's figure: it raises it where the data show it surely louder
