@@ -85,7 +85,6 @@ class Ingest:
         self.t_last: float | None = None    # the newest admitted sample's time (s)
         self._report = report
         self._record_rows = record_rows
-        self._reported: dict[str, str | None] = {"gate": None, "aiding": None, "input": None}
         self._record_restart = record_restart
         self._defer_control = False   # this pass's (feed_samples)
 
@@ -125,7 +124,7 @@ class Ingest:
     def _hold(self, decoded: Decoded) -> None:
         """A decoder's notices and refusals reported (refusals counted), its aiding epochs into the inbox."""
         for text in decoded.notices:
-            self._report_new("input", text)
+            self.alignment.report_new("input", text)
         for text in decoded.refused:
             self.counters.bad_aiding += 1
             self._report(text)
@@ -191,14 +190,9 @@ class Ingest:
 
     def _report_events(self) -> None:
         """The gate's, the pipeline's and the aiding's new events, each once."""
-        self._report_new("gate", self.gate.last_error)
+        self.alignment.report_new("gate", self.gate.last_error)
         self.alignment.report_events()
-        self._report_new("aiding", self.aid_stopped_text())
-
-    def _report_new(self, source: str, text: str | None) -> None:
-        if text and text != self._reported[source]:
-            self._reported[source] = text
-            self._report(text)
+        self.alignment.report_new("aiding", self.aid_stopped_text())
 
     def _feed(self, rows: np.ndarray | None, everything: bool = False) -> list[ResultRecord]:
         """Samples (N, 7) into the pipeline; in the aided mode they wait for their aiding first."""

@@ -51,10 +51,15 @@ class RestartingPipeline:
 
     def report_events(self) -> None:
         """The pipeline's new events (a disturbance, a notice for the operator), each once through ``report``."""
-        for source, text in (("disturbance", self.pipeline.last_disturbance), ("alignment", self.pipeline.last_notice)):
-            if text and text != self._reported.get(source):
-                self._reported[source] = text
-                self._report(text)
+        self.report_new("disturbance", self.pipeline.last_disturbance)
+        self.report_new("alignment", self.pipeline.last_notice)
+
+    def report_new(self, source: str, text: str | None) -> None:
+        """``text`` through ``report`` unless it is None or ``source``'s last one (an event reported once, whatever
+        its source: this pipeline's, or the gate's, the aiding's or the input's of the daemon that holds it)."""
+        if text and text != self._reported.get(source):
+            self._reported[source] = text
+            self._report(text)
 
     def process(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, aid: np.ndarray | None = None,
                 defer_control: bool = False) -> tuple[list[ResultRecord], str | None]:
