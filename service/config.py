@@ -104,7 +104,9 @@ LEVER = "3 numbers (body x, y, z in m)"
 class SensorConfig:
     """Datasheet 1-sigma figures of the IMU; an IMU log's own comment keys take precedence."""
 
-    gyro_bias_deg_h: float = _number(0.01, DATASHEET_RANGES["gyro_bias_deg_h"], "gyro bias 1-σ")
+    gyro_bias_deg_h: float = _number(0.01, DATASHEET_RANGES["gyro_bias_deg_h"],
+                                     "gyro bias 1-σ as the alignment meets it: the warmed-up turn-on "
+                                     "(run-to-run) figure, not the Allan minimum")
     gyro_arw_deg_rth: float = _number(0.001, DATASHEET_RANGES["gyro_arw_deg_rth"], "gyro angle random walk")
     acc_bias_ug: float = _number(50.0, DATASHEET_RANGES["acc_bias_ug"], "accelerometer bias 1-σ")
     acc_vrw_ug_rthz: float = _number(5.0, DATASHEET_RANGES["acc_vrw_ug_rthz"], "accelerometer noise density")
