@@ -29,7 +29,7 @@ import numpy as np
 
 from .counters import Counters, count
 from .crc import crc32_mpeg2, sum8, xor8
-from .framing import sync_tail
+from .framing import next_sync
 from .vendor import SensorSamples
 
 if TYPE_CHECKING:
@@ -295,14 +295,10 @@ class DeclaredFrameDecoder:
         endian, check = spec.endian, spec.checksum
         counters, statuses, values = [], [], []
         while True:
-            start = buf.find(spec.sync, pos)
-            if start < 0:
-                keep = sync_tail(buf, pos, spec.sync)
-                self.counts.bytes_skipped += len(buf) - pos - keep
-                pos = len(buf) - keep
+            pos, skipped, found = next_sync(buf, pos, spec.sync)
+            self.counts.bytes_skipped += skipped
+            if not found:
                 break
-            self.counts.bytes_skipped += start - pos
-            pos = start
             if len(buf) - pos < spec.length:
                 break
             frame = bytes(buf[pos:pos + spec.length])

@@ -20,7 +20,7 @@ import numpy as np
 
 from .counters import Counters, count
 from .crc import crc32_mpeg2
-from .framing import sync_tail
+from .framing import next_sync
 from .vendor import SensorSamples
 
 STANDARD_GRAVITY = 9.80665
@@ -98,14 +98,10 @@ class KvhDecoder:
         rows, notices = [], []
         pos = 0
         while True:
-            start = buf.find(SYNC, pos)
-            if start < 0:
-                keep = sync_tail(buf, pos, SYNC)
-                self.counts.bytes_skipped += len(buf) - pos - keep
-                pos = len(buf) - keep
+            pos, skipped, found = next_sync(buf, pos, SYNC)
+            self.counts.bytes_skipped += skipped
+            if not found:
                 break
-            self.counts.bytes_skipped += start - pos
-            pos = start
             if len(buf) - pos <= len(SYNC):
                 break
             fmt = _BY_FORMAT_BYTE.get(buf[pos + len(SYNC)])

@@ -45,7 +45,7 @@ import numpy as np
 from ._frames import imu_run
 from .buffers import read_sized
 from .counters import Counters, count
-from .framing import sync_tail
+from .framing import next_sync
 from .messages import AIDING_FIELDS, AidingSample, MessageError
 from .plausibility import aiding_problem
 from .sequence import SequenceTracker
@@ -301,14 +301,10 @@ class FrameDecoder:
                     self.counters.frames += n
                     out.append(rows[used:used + n])
                     used += n
-            start = buf.find(SYNC, pos)
-            if start < 0:
-                keep = sync_tail(buf, pos, SYNC)
-                self.counters.bytes_skipped += len(buf) - pos - keep
-                pos = len(buf) - keep
+            pos, skipped, found = next_sync(buf, pos, SYNC)
+            self.counters.bytes_skipped += skipped
+            if not found:
                 break
-            self.counters.bytes_skipped += start - pos
-            pos = start
             if len(buf) - pos < HEADER.size:
                 break
             _, version, msg_type, length, seq, time_ns, check = HEADER.unpack_from(buf, pos)

@@ -34,7 +34,7 @@ import numpy as np
 
 from .counters import Counters, count
 from .crc import sum8
-from .framing import sync_tail
+from .framing import next_sync
 from .vendor import SensorSamples
 
 if TYPE_CHECKING:
@@ -114,14 +114,10 @@ class XsensDecoder:
         rows: list[tuple[int, tuple[float, ...], tuple[float, ...], int]] = []
         notices: dict[str, None] = {}
         while True:
-            start = buf.find(SYNC, pos)
-            if start < 0:
-                keep = sync_tail(buf, pos, SYNC)
-                self.counts.bytes_skipped += len(buf) - pos - keep
-                pos = len(buf) - keep
+            pos, skipped, found = next_sync(buf, pos, SYNC)
+            self.counts.bytes_skipped += skipped
+            if not found:
                 break
-            self.counts.bytes_skipped += start - pos
-            pos = start
             if len(buf) - pos < 4:
                 break
             mid, length, head = buf[pos + 2], buf[pos + 3], 4
