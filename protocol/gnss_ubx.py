@@ -3,8 +3,9 @@
 
 A NAV-PVT gives the antenna's latitude and longitude (1e-7°), its height above the ellipsoid (mm), its velocity
 north, east and down (mm/s; turned here into East, North, Up) and its accuracy estimates hAcc, vAcc (mm) and sAcc
-(mm/s). An epoch counts as a fix with fixType 3 (3-D) and the gnssFixOK flag (within the receiver's accuracy
-masks); any other is dropped, counted (``no_fix``).
+(mm/s). An epoch counts as a fix with fixType 3 (3-D) or 4 (GNSS and dead reckoning combined, an automotive
+receiver's usual output once its sensors are calibrated) and the gnssFixOK flag (a GNSS fix within the receiver's
+accuracy masks is in the solution); any other, dead reckoning alone among them, is dropped, counted (``no_fix``).
 
 Messages are found by their header (0xB5 0x62, class, id and the NAV-PVT length): everything else, the IMU's frames
 on a shared line or the receiver's other UBX messages, is skipped without being counted; a NAV-PVT whose Fletcher
@@ -19,7 +20,8 @@ from .gnss_fix import GnssFix, ReceiverCounters
 NAV_PVT_HEADER = b"\xb5\x62\x01\x07\x5c\x00"
 """Sync chars, class NAV, id PVT and the payload length (92, little-endian)."""
 NAV_PVT_BYTES = len(NAV_PVT_HEADER) + 92 + 2
-FIX_3D = 3
+FIX_TYPES = (3, 4)
+"""fixType 3-D, and GNSS + dead reckoning combined."""
 WEEK_S = 7 * 86400.0
 
 
@@ -63,7 +65,7 @@ class UbxDecoder:
                 fixes.append(fix)
 
     def _fix(self, m, arrival_s: float) -> GnssFix | None:
-        if m.fixType != FIX_3D or not m.gnssFixOk:
+        if m.fixType not in FIX_TYPES or not m.gnssFixOk:
             self._counters.no_fix += 1
             return None
         return GnssFix(arrival_s, m.iTOW * 1e-3, float(m.lat), float(m.lon), m.height * 1e-3,

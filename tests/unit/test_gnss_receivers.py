@@ -136,12 +136,16 @@ def test_nav_pvt_gives_position_enu_velocity_and_the_receivers_accuracies():
     assert fix.time_s == 123_456.0
 
 
-def test_nav_pvt_without_a_3d_fix_or_gnssfixok_and_bad_checksums_are_counted():
+def test_nav_pvt_without_a_gnss_fix_and_bad_checksums_are_counted():
+    """A 2-D fix, dead reckoning alone (fixType 1) and any fix without gnssFixOK are no fix; a 3-D fix and GNSS with
+    dead reckoning combined (fixType 4, an automotive receiver's output) with gnssFixOK are."""
     bad = bytearray(nav_pvt())
     bad[-1] ^= 0xFF
     decoder = UbxDecoder()
-    assert decoder.feed(nav_pvt(fix_type=2) + nav_pvt(flags=0) + bytes(bad) + nav_pvt(), 0.0)[0].h_m == 547.6
-    assert decoder.counters() == {"checksum_errors": 1, "no_fix": 2}
+    stream = (nav_pvt(fix_type=2) + nav_pvt(fix_type=1) + nav_pvt(fix_type=4, flags=0) + nav_pvt(flags=0) + bytes(bad)
+              + nav_pvt() + nav_pvt(fix_type=4, height_mm=548600))
+    assert [fix.h_m for fix in decoder.feed(stream, 0.0)] == [547.6, 548.6]
+    assert decoder.counters() == {"checksum_errors": 1, "no_fix": 4}
 
 
 def test_nav_pvt_in_any_pieces_among_other_bytes():
