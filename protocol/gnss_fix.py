@@ -38,8 +38,8 @@ class ReceiverCounters(Counters):
 
     checksum_errors: int = count("receiver messages (NMEA sentences, UBX NAV-PVT) whose checksum failed")
     malformed: int = count("receiver messages with a valid checksum whose fields do not parse")
-    no_fix: int = count("receiver epochs without a fix (GGA quality 0, RMC status V, NAV-PVT without a 3-D fix "
-                        "and gnssFixOK)")
+    no_fix: int = count("receiver epochs without a GNSS fix (GGA quality 0 or 6, RMC status V, RMC or VTG mode "
+                        "E, N, M or S, NAV-PVT without a 3-D or GNSS + dead reckoning fix and gnssFixOK)")
     unpaired: int = count("NMEA GGA without an RMC or VTG of its output cycle, or RMC without GGA (dropped)")
     no_vertical: int = count("NMEA epochs without a GGA height 1 s or less before them: no vertical velocity "
                              "(the first of a stream and the first after a gap)")

@@ -2,9 +2,12 @@
 
 - GGA gives the position: latitude, longitude and the altitude above the geoid plus the geoid separation, which
   is the height above the WGS-84 ellipsoid (an empty separation is taken as 0: the receiver then reports the
-  ellipsoidal height as its altitude). Quality 0 is no fix: the epoch is dropped, counted (``no_fix``).
+  ellipsoidal height as its altitude). A quality other than 1–5 (a GNSS fix: autonomous, differential, PPS, RTK
+  fixed or float) is no fix, 0 (none) and 6 (dead reckoning: the receiver's extrapolation, not a measurement) among
+  them: the epoch is dropped, counted (``no_fix``).
 - RMC (or, in a stream without RMC, VTG) gives the speed over ground (knots) and the course over ground (degrees
-  from true north): v_E = s sin c, v_N = s cos c. RMC status V is no fix (``no_fix``).
+  from true north): v_E = s sin c, v_N = s cos c. RMC status V is no fix (``no_fix``), and so is an RMC or VTG
+  whose mode indicator (NMEA 2.3 and later) says estimated (dead reckoning), not valid, manual or simulated.
 - NMEA has no vertical velocity. v_U is the change of the ellipsoidal height from the previous GGA with a fix over
   the time between their UTC times, if that is 1 s or less: the mean vertical velocity over that interval, half an
   interval late. Without such a height the epoch is dropped (``no_vertical``). A constant v_U = 0 would be wrong by
@@ -27,6 +30,13 @@ from pynmeagps import VALCKSUM, NMEAReader
 from pynmeagps.nmeahelpers import calc_checksum
 
 from .gnss_fix import GnssFix, ReceiverCounters
+
+GNSS_QUALITIES = frozenset((1, 2, 3, 4, 5))
+"""GGA fix qualities of a GNSS fix: autonomous, differential, PPS, RTK fixed, RTK float."""
+NO_FIX_MODES = frozenset("ENMS")
+"""RMC and VTG mode indicators without a GNSS fix: estimated (dead reckoning), not valid, manual, simulator."""
+NO_FIX = (math.nan, math.nan)
+"""The ground velocity of an RMC or VTG without a GNSS fix: its cycle is dropped (``no_fix``)."""
 
 KNOT_MPS = 1852.0 / 3600.0
 MAX_SENTENCE_BYTES = 128
@@ -139,7 +149,7 @@ class NmeaDecoder:
         cycle = self._cycle_at(t_s)
         if cycle.settled:
             return None
-        if message.quality in ("", 0):
+        if message.quality not in GNSS_QUALITIES:
             return self._drop(cycle, "no_fix")
         h_m = float(message.alt) + (float(message.sep) if message.sep != "" else 0.0)
         lat, lon = float(message.lat), float(message.lon)   # signed degrees (N, E positive)
@@ -148,9 +158,9 @@ class NmeaDecoder:
         if dt_s is None or not 0.0 < dt_s <= MAX_VERTICAL_BASE_S:
             return self._drop(cycle, "no_vertical")
         cycle.position = (lat, lon, h_m, (h_m - last[1]) / dt_s)
-        if cycle.velocity is None and not self._rmc_seen and self._floating_vtg is not None:
-            cycle.velocity = self._floating_vtg
-        self._floating_vtg = None
+        floating, self._floating_vtg = self._floating_vtg, None
+        if cycle.velocity is None and not self._rmc_seen and floating is not None:
+            return self._velocity(cycle, floating, arrival_s)
         return self._complete(cycle, arrival_s)
 
     def _rmc(self, message, arrival_s: float) -> GnssFix | None:
@@ -158,19 +168,24 @@ class NmeaDecoder:
         cycle = self._cycle_at(_seconds_of_day(message))
         if cycle.settled:
             return None
-        if message.status != "A":
-            return self._drop(cycle, "no_fix")
-        cycle.velocity = _ground_velocity(message.spd, message.cog)
-        return self._complete(cycle, arrival_s)
+        fixed = message.status == "A" and getattr(message, "posMode", "") not in NO_FIX_MODES
+        return self._velocity(cycle, _ground_velocity(message.spd, message.cog) if fixed else NO_FIX, arrival_s)
 
     def _vtg(self, message, arrival_s: float) -> GnssFix | None:
         if self._rmc_seen:
             return None
-        velocity = _ground_velocity(message.sogn, message.cogt)
+        velocity = NO_FIX if getattr(message, "posMode", "") in NO_FIX_MODES else _ground_velocity(message.sogn,
+                                                                                                  message.cogt)
         cycle = self._cycle
         if cycle is None or cycle.settled or cycle.velocity is not None:
             self._floating_vtg = velocity   # its cycle's GGA comes next
             return None
+        return self._velocity(cycle, velocity, arrival_s)
+
+    def _velocity(self, cycle: _Cycle, velocity: tuple[float, float], arrival_s: float) -> GnssFix | None:
+        """The cycle with its ground velocity (E, N; m/s), or dropped for :data:`NO_FIX`."""
+        if velocity is NO_FIX:
+            return self._drop(cycle, "no_fix")
         cycle.velocity = velocity
         return self._complete(cycle, arrival_s)
 

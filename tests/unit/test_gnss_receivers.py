@@ -106,6 +106,21 @@ def test_no_fix_and_bad_checksums_are_dropped_and_counted():
     assert counts["no_fix"] == 2 and counts["checksum_errors"] == 1
 
 
+def test_dead_reckoning_is_no_fix():
+    """GGA quality 6 and an RMC or VTG whose mode indicator says estimated (E) are the receiver's extrapolation, not a
+    measurement: dropped as no fix, whichever of the cycle's sentences says so and in either order."""
+    dead_gga = changed(GGA, ",1,08,", ",6,08,")
+    dead_rmc = changed(RMC_SAME, "091202,,,A", "091202,,,E")
+    dead_vtg = changed(VTG, ",K,A", ",K,E")
+    for stream in (GGA_BEFORE + dead_gga + RMC_SAME, GGA_BEFORE + GGA + dead_rmc, GGA_BEFORE + GGA + dead_vtg,
+                   GGA_BEFORE + dead_vtg + GGA):
+        decoder = NmeaDecoder()
+        assert decoder.feed(stream, 0.0) == []
+        assert decoder.counters()["no_fix"] == 1 and decoder.counters()["unpaired"] == 0
+    decoder = NmeaDecoder()
+    assert len(decoder.feed(GGA_BEFORE + GGA + VTG, 0.0)) == 1   # the same cycle with a fix
+
+
 def test_every_chunking_gives_the_same_epochs():
     stream = b"".join(nmea_epoch(np.array([0.02 * k, 30.0 + 1e-6 * k, 114.0, 3000.0 + 0.01 * k, 70.0, 70.0, 0.5]))
                       for k in range(1, 6))
