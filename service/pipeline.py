@@ -29,8 +29,10 @@ from .align.noise_check import MIN_OUTLIER_COUNT, OUTLIER_FACTOR, SETTLE_S, VERD
 from .align.sensor_model import (
     ESTIMATOR_EFFICIENCY,
     SIGMA_UNKNOWN_DEG,
+    AttitudeSigma,
     SensorGrade,
     auto_solver,
+    carried_sigma,
     inertial_alignment_sigma,
     inertial_alignment_sigmas,
 )
@@ -528,7 +530,7 @@ class AlignmentPipeline:
         if self.coarse.solver.n_obs == 0:
             return
         found = self.motion.check(elapsed_s, alpha, dcm_from_quat(self.coarse.q_b_n0),
-                                  lambda: tuple(sigma_deg * DEG for sigma_deg in self.coarse.sigma(elapsed_s)))
+                                  lambda at_s: tuple(sigma_deg * DEG for sigma_deg in self.coarse.sigma(at_s)))
         if found is None:
             return
         d = self.config.disturbance
@@ -559,12 +561,13 @@ class AlignmentPipeline:
                 coarse: InertialCoarseAlignment) -> ResultRecord:
         episode = None if self.motion is None else self.motion.episode
         if episode is not None:
-            # a base that moves: the attitude trusted before the motion, carried on by the gyros
+            # a base that moves: the attitude trusted before the motion, carried on by the gyros, its σ with their drift
             elapsed = t_sample - coarse.t0
             C_b_n = coarse.source.C_n_n0(elapsed).T @ episode.C_b0_n0 @ dcm_from_quat(q_b_b0)
-            solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), episode.heading_sigma_rad / DEG,
-                                        episode.level_sigma_rad / DEG, coarse.solver.rho, coarse.solver.trace_P,
-                                        coarse.solver.n_obs)
+            sigma = carried_sigma(AttitudeSigma(episode.heading_sigma_rad / DEG, episode.level_sigma_rad / DEG),
+                                  coarse.sigma_grade, elapsed - episode.start_s)
+            solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), sigma.heading_deg, sigma.level_deg,
+                                        coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
             record = result_record(solution, t_epoch, "disturbed", self.config.alignment.converged_heading_sigma_deg)
         else:
             record = self.mode.record(t_epoch, t_sample, q_b_b0, coarse)

@@ -52,7 +52,7 @@ class MotionEpisode:
     alpha_start: np.ndarray       # α (3,) m/s, b0 axes, at start_s
     beta_start: np.ndarray        # β (3,) m/s, n0 axes, at start_s
     C_b0_n0: np.ndarray           # the trusted estimate (3, 3), frozen at the detection
-    heading_sigma_rad: float      # its 1-sigma errors
+    heading_sigma_rad: float      # its 1-sigma errors at start_s
     level_sigma_rad: float
     detected_s: float
     speed_mps: float = 0.0        # |velocity gained since start_s| at the last check
@@ -102,10 +102,10 @@ class MotionMonitor:
         return horizontal_gained(self._lat, elapsed_s, C_b0_n0, alpha, beta, alpha_from, beta_from)
 
     def check(self, elapsed_s: float, alpha_b0: np.ndarray, C_b0_n0: np.ndarray,
-              sigma_rad: Callable[[], tuple[float, float]]) -> MotionCheck | None:
-        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 and what gives its
-        1-sigma (heading, level) errors (rad), asked only when the velocity calls for them (most checks find the base
-        still without). None: the base stays still."""
+              sigma_rad: Callable[[float], tuple[float, float]]) -> MotionCheck | None:
+        """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 and what gives the
+        1-sigma (heading, level) errors (rad) of the estimate after a given elapsed time, asked only when the velocity
+        calls for them (most checks find the base still without). None: the base stays still."""
         slot = self._count % (self._n + 1)
         oldest = (self._count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
         self._count += 1
@@ -119,12 +119,14 @@ class MotionMonitor:
             self.window_speed_mps = speed
             # the heading's move over the window only once the velocity asks (a check every control step)
             self.suspect = speed > SUSPECT_FRACTION * self.threshold_mps and (
-                abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * sigma_rad()[0])
+                abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * sigma_rad(elapsed_s)[0])
             if speed <= self.threshold_mps:
                 return None
-            self.episode = MotionEpisode(float(self._elapsed[oldest]), self._alpha[oldest].copy(),
-                                         self._beta[oldest].copy(), self._C[oldest].copy(), *sigma_rad(), elapsed_s,
-                                         speed, speed)
+            # the estimate of the window's start is trusted with the σ it had then: 2 s into an alignment it is
+            # worth a heading σ of 45°, not the 3° of the estimate at the detection
+            start_s = float(self._elapsed[oldest])
+            self.episode = MotionEpisode(start_s, self._alpha[oldest].copy(), self._beta[oldest].copy(),
+                                         self._C[oldest].copy(), *sigma_rad(start_s), elapsed_s, speed, speed)
             return MotionCheck("moving", speed)
         beta = self._beta[slot]
         window_speed, _ = self._gained(episode.C_b0_n0, elapsed_s, alpha_b0, beta, self._alpha[oldest],

@@ -165,6 +165,16 @@ def inertial_alignment_sigma(grade: SensorGrade, lat: float, gravity: float, ela
                          min(math.sqrt(level2) / DEG, SIGMA_UNKNOWN_DEG))
 
 
+def carried_sigma(sigma: AttitudeSigma, grade: SensorGrade, carried_s: float) -> AttitudeSigma:
+    """1-sigma error (degrees, capped at the unknown angle's) of an attitude with ``sigma`` carried on by the gyros
+    for ``carried_s`` seconds: every axis drifts by the gyro bias times the time and walks by the angle random walk.
+    It is what a fixed-base estimate frozen before the base moved is worth later, and it grows fast on gyros whose
+    bias the data showed far beyond the datasheet's (a rate in °/s read as rad/s)."""
+    drift2 = ((grade.gyro_bias_rad_s * carried_s) ** 2 + grade.gyro_arw_rad_rts**2 * carried_s) / DEG**2
+    return AttitudeSigma(min(math.sqrt(sigma.heading_deg**2 + drift2), SIGMA_UNKNOWN_DEG),
+                         min(math.sqrt(sigma.level_deg**2 + drift2), SIGMA_UNKNOWN_DEG))
+
+
 def inertial_alignment_sigmas(grade: SensorGrade, lat: float, gravity: float, elapsed_s: np.ndarray) -> np.ndarray:
     """The root sum of squares of the heading and level σ of :func:`inertial_alignment_sigma` (degrees) at each of
     the alignment times ``elapsed_s`` (s, all positive), in one pass."""
