@@ -65,6 +65,9 @@ BIAS_SIGMAS = 3.0
 """A datasheet's bias is a 1-σ figure per axis: a sensor's may be this many times it."""
 TREND_SIGMAS = 4.0
 """The noise's share of the fitted trend allowed, in its standard deviations."""
+SCALE_HINT_FACTOR = 10.0
+"""A measured gyro bias beyond the Earth's rate in a gyro stated this many times better than it (one that can find
+north) points the operator at the gyros' scale: their units or the time base (imu.rate_hz)."""
 MIN_MEAN_SQUARE = 1e-100
 """(m/s)²: the least a lag's mean square weighs the fit as, so that a lag whose squares are all zero (a constant
 signal) weighs finitely (its square would underflow to an infinite weight)."""
@@ -228,4 +231,9 @@ class NoiseMeter:
                          f"{stated.acc_vrw_ms_rts / UG_TO_MS2:.3g} µg/√Hz (acc_vrw_ug_rthz)")
         notice = (f"the data show {' and '.join(parts)}: σ uses the measured figure; check [sensor] or the log's "
                   "datasheet keys") if parts else None
+        if self.bias_rad_s > OMEGA_IE > SCALE_HINT_FACTOR * stated.gyro_bias_rad_s:
+            # a gyro stated fit to find north, wrong by more than the rate it finds north from
+            notice += (f"; a gyro stated at {stated.gyro_bias_rad_s / DH_TO_RS:.3g}°/h that reads beyond the Earth's "
+                       "rate (15.04°/h) is more likely read at the wrong scale: check the gyros' units and imu.rate_hz "
+                       "(the time of an IMU stamped by its sample counter)")
         return NoiseVerdict(grade, notice)

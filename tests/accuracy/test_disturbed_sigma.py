@@ -5,7 +5,8 @@ carried on by the gyros. GIVEN a swinging base driven off 1 s into its alignment
 and its σ says so: the heading is unknown (σ 103.9°, the cap of an unknown angle). The σ of the estimate at the
 detection, 2 s later, is 3.8°, and the carried heading was up to 180° off under it. GIVEN gyros whose output is 57×
 too large (°/s read as rad/s) on a static base, THEN the same holds: the misread rotation looks like motion at once,
-and every disturbed record's σ covers its error (149° off under 3.8° without it).
+and every disturbed record's σ covers its error (149° off under 3.8° without it). The bias the data then show, far
+beyond the Earth's rate, points the operator at the gyros' units and the time base.
 """
 from __future__ import annotations
 
@@ -20,8 +21,8 @@ from sinsalign.tools.sim.parked import Signal, SmoothStep
 from sinsalign.tools.sim.scenarios import _swing_driven, get_scenario
 
 
-def disturbed(scenario, seed: int, gyro_factor: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """(|heading error| deg, heading σ deg) of the ``disturbed`` records of ``scenario``."""
+def disturbed(scenario, seed: int, gyro_factor: float = 1.0):
+    """(|heading error| deg, heading σ deg) of the ``disturbed`` records of ``scenario``, and its pipeline."""
     scenario = scenario.for_seed(seed)
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed,
                         chunk_samples=10**7)
@@ -30,22 +31,23 @@ def disturbed(scenario, seed: int, gyro_factor: float = 1.0) -> tuple[np.ndarray
     truth = chunk.C_b_n_true[np.searchsorted(chunk.t, [r.t for r in records])]
     errors = np.array([abs(misalignment(dcm_from_quat(np.array(r.q)), C)[2]) / DEG
                        for r, C in zip(records, truth, strict=True)])
-    return errors, np.array([r.heading_sigma_deg for r in records])
+    return errors, np.array([r.heading_sigma_deg for r in records]), pipeline
 
 
 @pytest.mark.parametrize("seed", [3, 4])
 def test_a_base_driven_off_at_once_carries_an_unknown_heading(seed):
     scenario = _swing_driven("drive-off-at-1-s", "driven north from 1 s, 10 m/s at 11 s",
                              Signal(terms=(SmoothStep(1.0, 10.0, 10.0),)), 30.0, ((1.0, 2.0),))
-    errors, sigma = disturbed(scenario, seed)
+    errors, sigma, _ = disturbed(scenario, seed)
     assert len(errors) >= 25
     assert np.all(sigma == pytest.approx(SIGMA_UNKNOWN_DEG))
 
 
 def test_gyros_read_57_times_too_large_never_carry_a_heading_beyond_its_sigma():
-    errors, sigma = disturbed(get_scenario("seed001-static"), 5, gyro_factor=1.0 / DEG)
+    errors, sigma, pipeline = disturbed(get_scenario("seed001-static"), 5, gyro_factor=1.0 / DEG)
     assert len(errors) >= 100 and errors.max() > 90.0   # the misread rotation turned the carried heading
     assert np.all(errors <= 1.8 * sigma)   # 180° at most: an unknown angle's σ covers it
+    assert "check the gyros' units and imu.rate_hz" in pipeline.last_notice   # the operator is pointed at the scale
 
 
 def test_a_carried_attitude_drifts_with_the_gyros():
