@@ -95,9 +95,11 @@ def fixed_base_blocks(pipeline: AlignmentPipeline) -> FixedBaseBlocks | None:
     settle = round(SETTLE_S / noise.step_s) if noise is not None else 0
     solver = pipeline.coarse.solver
     motion = pipeline.motion
-    suspect_mps = SUSPECT_FRACTION * motion.threshold_mps if motion is not None else 0.0
+    # a window's velocity that asks for σ: the quarter of the threshold, which grows with the gyros' drift
+    suspect = ((SUSPECT_FRACTION * motion.threshold_mps, SUSPECT_FRACTION * motion.drift_mps_per_s)
+               if motion is not None else (0.0, 0.0))
     return FixedBaseBlocks(pipeline.site.lat, pipeline.site.gravity, solver, _GAIN_POLICY[solver.solver], noise,
-                           (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), motion, suspect_mps,
+                           (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), motion, *suspect,
                            pipeline.config.disturbance.check_interval_s, fine, pipeline.config.fine.compass,
                            SIGMA_UNKNOWN_DEG, ESTIMATOR_EFFICIENCY)
 
@@ -207,7 +209,8 @@ class AlignmentPipeline:
         self._restarted = t_start is not None
         d = self.config.disturbance
         self.motion = (MotionMonitor(self.site, d.velocity_threshold_mps, d.window_s, d.check_interval_s,
-                                     d.hold_s) if d.enabled and self.checks_translation else None)
+                                     d.hold_s, self.grade.gyro_bias_rad_s)
+                       if d.enabled and self.checks_translation else None)
         self._next_check_s = d.check_interval_s
         # a fixed base's estimates against their σ (consistency.py); a moving vehicle's fits and filters judge their own
         self.consistency = ConsistencyMonitor() if self.motion is not None and self.checks_noise else None

@@ -78,7 +78,7 @@ cdef class FixedBaseBlocks:
     # the motion monitor
     cdef bint with_motion
     cdef long ring_n
-    cdef double suspect_mps, check_interval_s
+    cdef double suspect_mps, suspect_mps_per_s, check_interval_s
     # the compass loops
     cdef bint with_fine
     cdef int n_knots
@@ -107,12 +107,13 @@ cdef class FixedBaseBlocks:
     cdef int n_F, next_F
 
     def __init__(self, double lat, double gravity, solver, int policy, noise, noise_constants, motion,
-                 double suspect_mps, double check_interval_s, fine, handover, double sigma_unknown_deg,
-                 double efficiency):
+                 double suspect_mps, double suspect_mps_per_s, double check_interval_s, fine, handover,
+                 double sigma_unknown_deg, double efficiency):
         """``solver``: the RecursiveK and its gain ``policy`` (solvers._GAIN_POLICY); ``noise``: the NoiseMeter or
         None, with ``noise_constants`` (settle steps, outlier factor, least outlier count, verdict steps);
         ``motion``: the MotionMonitor or None, checked every ``check_interval_s``, a window's velocity above
-        ``suspect_mps`` asking for σ (disturbance.SUSPECT_FRACTION of its threshold); ``fine``: the FineAlignment or
+        ``suspect_mps`` + ``suspect_mps_per_s`` × the alignment's time asking for σ (disturbance.SUSPECT_FRACTION of
+        its threshold, which grows with the gyros' drift); ``fine``: the FineAlignment or
         None (its loops' schedule and site constants), with the compass configuration's ``handover`` (its kind, time,
         least time and σ), σ's ceiling ``sigma_unknown_deg`` and the estimator's ``efficiency``
         (sensor_model.ESTIMATOR_EFFICIENCY)."""
@@ -126,7 +127,7 @@ cdef class FixedBaseBlocks:
             self.lags, self.sums, self.counts = noise._lags, noise._sums, noise._counts
         self.with_motion = motion is not None
         if self.with_motion:
-            self.ring_n, self.suspect_mps = motion._n, suspect_mps
+            self.ring_n, self.suspect_mps, self.suspect_mps_per_s = motion._n, suspect_mps, suspect_mps_per_s
             self.check_interval_s = check_interval_s
             self.ring_elapsed, self.ring_alpha, self.ring_beta = motion._elapsed, motion._alpha, motion._beta
             self.ring_C = motion._C
@@ -384,7 +385,7 @@ cdef class FixedBaseBlocks:
                             _horizontal(self.lat, elapsed_s, &ring_C[oldest, 0, 0], a, beta, &ring_alpha[oldest, 0],
                                         &ring_beta[oldest, 0], gained)
                             speed = gained[0]
-                            if speed > self.suspect_mps:
+                            if speed > self.suspect_mps + self.suspect_mps_per_s * elapsed_s:
                                 stage = STOP_MOTION   # the monitor's Python steps take the check from here
                                 break
                         ring_elapsed[slot] = elapsed_s

@@ -76,12 +76,18 @@ class MotionMonitor:
 
     site : the fixed site (its β and the navigation frame's turn, in closed form).
     threshold_mps : horizontal velocity gained over ``window_s`` that means "moving" (m/s).
+    gyro_bias_rad_s : the datasheet's gyro bias. It tilts the integrated body attitude by ε t, which the estimate
+        cannot follow: g ε t of acceleration in the residual, a velocity gained over a window that grows with the
+        alignment's time, g ε t W. The threshold is raised by :data:`DRIFT_SIGMAS` of it (``drift_mps_per_s`` per
+        second of alignment), so that a tactical or MEMS IMU on a still base is not taken for a moving one: 1°/h
+        gains 0.06 m/s in 2 s after 10 minutes. A navigation-grade gyro's share is a few mm/s.
     """
 
     def __init__(self, site: Site, threshold_mps: float, window_s: float, check_interval_s: float,
-                 settle_s: float) -> None:
+                 settle_s: float, gyro_bias_rad_s: float = 0.0) -> None:
         self._lat, self._gravity = site.lat, site.gravity
         self.threshold_mps = threshold_mps
+        self.drift_mps_per_s = DRIFT_SIGMAS * site.gravity * gyro_bias_rad_s * window_s
         self.settle_s = settle_s
         self._n = max(1, round(window_s / check_interval_s))
         self._elapsed = np.full(self._n + 1, np.nan)
@@ -118,9 +124,10 @@ class MotionMonitor:
         if episode is None:
             self.window_speed_mps = speed
             # the heading's move over the window only once the velocity asks (a check every control step)
-            self.suspect = speed > SUSPECT_FRACTION * self.threshold_mps and (
+            threshold = self.threshold_mps + self.drift_mps_per_s * elapsed_s
+            self.suspect = speed > SUSPECT_FRACTION * threshold and (
                 abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * sigma_rad(elapsed_s)[0])
-            if speed <= self.threshold_mps:
+            if speed <= threshold:
                 return None
             # the estimate of the window's start is trusted with the σ it had then: 2 s into an alignment it is
             # worth a heading σ of 45°, not the 3° of the estimate at the detection
