@@ -190,6 +190,8 @@ cdef class FixedBaseBlocks:
             noise_heading2 = terms[0] / pow(elapsed_s, 3.0) + terms[1] / elapsed_s + terms[2] / pow(elapsed_s, 5.0)
             heading2 = terms[3] + drift2 + self.efficiency * noise_heading2
             heading_deg = min(sqrt(heading2) / DEG, self.sigma_unknown_deg)
+        if heading_deg >= self.sigma_unknown_deg:   # an unknown heading: no noise part to hand over
+            return False
         # FixedBase._noise_part: the datasheet's bias limit taken out
         heading2 = max(pow(heading_deg * DEG, 2.0) - pow(terms[5], 2.0), 0.0)
         return sqrt(heading2 / self.efficiency) / DEG <= self.handover_sigma_deg

@@ -18,7 +18,7 @@ from ..align.compass import GainSchedule
 from ..align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from ..align.fine import FineAlignment
 from ..align.observations import FixedSiteSource
-from ..align.sensor_model import ESTIMATOR_EFFICIENCY, _sigma_terms, bias_limit_rad
+from ..align.sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, _sigma_terms, bias_limit_rad
 from ..align.solvers import make_solver
 from ..align.swing_bias import SwingBias
 from ..records import coarse_record, record_of, result_record
@@ -97,8 +97,13 @@ class FixedBase:
             # σ the data's own noise has not checked yet (they carry it on)
             return False
         # the noise part only: the bias floor stays whatever the stage, and above the threshold
-        # for a poor gyro it would keep the loops from ever starting
-        return self._noise_part(*p.coarse.sigma(elapsed_s))[1] / DEG <= f.handover_sigma_deg
+        # for a poor gyro it would keep the loops from ever starting; but a heading at the unknown angle's σ has no
+        # noise part to speak of (a bias limit beyond the cap left 0 of it, and a 200°/h gyro's loops started with
+        # no heading uncertainty at 10 s, their levels 7° off under σ 0.13°)
+        heading_sigma_deg, level_sigma_deg = p.coarse.sigma(elapsed_s)
+        if heading_sigma_deg >= SIGMA_UNKNOWN_DEG:
+            return False
+        return self._noise_part(heading_sigma_deg, level_sigma_deg)[1] / DEG <= f.handover_sigma_deg
 
     def handover_terms(self) -> tuple[float, ...]:
         """What the compiled loop (service/align/_blocks.pyx) needs of the hand-over test: the noise terms of the

@@ -5,16 +5,14 @@ GIVEN the seed-000 swing base that is driven north at 1 m/s² from 60 s, WHEN th
 it, THEN `disturbed` appears within 3 s and no later epoch claims `converged`, with a tactical IMU too; GIVEN 20
 pure swing runs, or a tactical IMU on a still base for 10 minutes, THEN nothing is flagged.
 """
-from dataclasses import replace
-
 import numpy as np
 import pytest
-from sinsalign.service.align.conventions import DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
 from sinsalign.service.config import Config, config_from_mapping
 from sinsalign.service.pipeline import AlignmentPipeline
 from sinsalign.tools.evaluate import monte_carlo
-from sinsalign.tools.sim.imu import ImuErrors, simulate
-from sinsalign.tools.sim.scenarios import get_scenario, grade_of
+from sinsalign.tools.sim.imu import simulate
+from sinsalign.tools.sim.scenarios import get_scenario
+from support.poor_imus import poor_imu
 
 
 def records_of(name: str, config: Config, seed: int = 0):
@@ -80,18 +78,6 @@ def test_an_attitude_jump_the_gyros_did_not_see_is_reported_within_a_few_seconds
     assert not any(r.converged for r in records if r.t >= disturbed[0] and r.t < disturbed[0] + 10.0)
 
 
-def tactical(name: str, gyro_bias_deg_h: float, seed: int):
-    """``name`` for ``seed`` with a tactical IMU: gyro biases of ±``gyro_bias_deg_h`` (signs drawn), 0.05°/√h, 1 mg,
-    100 µg/√Hz, the datasheet stating the same."""
-    rng = np.random.default_rng(seed)
-    gyro_signs, acc_signs = rng.choice([-1.0, 1.0], (2, 3))
-    errors = ImuErrors(gyro_bias_rad_s=tuple(gyro_bias_deg_h * DH_TO_RS * gyro_signs),
-                       gyro_arw_rad_rts=0.05 * DRH_TO_RRS, acc_bias_ms2=tuple(1000.0 * UG_TO_MS2 * acc_signs),
-                       acc_vrw_ms_rts=100.0 * UG_TO_MS2)
-    scenario = get_scenario(name).for_seed(seed)
-    return replace(scenario, errors=errors, grade=grade_of(errors, scenario.rate_hz))
-
-
 def disturbed_times(scenario, seed: int) -> list[float]:
     (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, scenario.rate_hz, scenario.duration_s, seed,
                         chunk_samples=10**7)
@@ -103,10 +89,10 @@ def disturbed_times(scenario, seed: int) -> list[float]:
 def test_a_tactical_gyro_s_drift_on_a_still_base_is_not_motion(gyro_bias_deg_h, seed):
     """Its bias tilts the integrated attitude by ε t, a velocity gained over the window that grows with the time
     (1°/h: 0.06 m/s in 2 s after 10 minutes): the threshold grows with the datasheet's share of it."""
-    assert disturbed_times(tactical("seed001-static", gyro_bias_deg_h, seed), seed) == []
+    assert disturbed_times(poor_imu("seed001-static", seed, gyro_bias_deg_h, 0.05, 1000.0), seed) == []
 
 
 @pytest.mark.parametrize("seed", [4, 5])
 def test_a_tactical_imu_driven_off_is_still_reported_within_3_s(seed):
-    disturbed = disturbed_times(tactical("seed000-swing-driven", 1.0, seed), seed)
+    disturbed = disturbed_times(poor_imu("seed000-swing-driven", seed, 1.0, 0.05, 1000.0), seed)
     assert disturbed and 60.0 < disturbed[0] <= 63.0
