@@ -330,6 +330,13 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
         return self.solver.prepare(b, r, self.source.observation_variance(elapsed_s),
                                    self.source.drift_regressor(elapsed_s))
 
+    def drift_dominates(self, elapsed_s: float) -> bool:
+        """Whether the gyro's drift ε t already outweighs the fit's heading noise: the coarse σ only grows from here
+        (a MEMS gyro's after some seconds; a navigation-grade gyro's never within an alignment)."""
+        covariance = self.solver.covariance()
+        drift = self.sigma_grade.gyro_bias_rad_s * max(elapsed_s, 0.0)
+        return covariance is not None and drift * drift >= self.source.sigma_factor**2 * covariance[2, 2]
+
     def sigma(self, elapsed_s: float) -> tuple[float, float]:
         covariance = self.solver.covariance()
         if covariance is None:
@@ -337,7 +344,12 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
         heading_var, level_var = covariance[2, 2], 0.5 * (covariance[0, 0] + covariance[1, 1])
         if not (heading_var > 0.0 and level_var > 0.0):   # a fit not yet determined (or NaN): not a σ of 0 or NaN
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
-        heading, level = np.sqrt(heading_var), np.sqrt(level_var)
-        factor = self.source.sigma_factor
-        return (min(float(factor * heading / DEG), SIGMA_UNKNOWN_DEG),
-                min(float(factor * level / DEG), SIGMA_UNKNOWN_DEG))
+        factor, grade = self.source.sigma_factor, self.sigma_grade
+        # the fit takes C_b0^n0 as constant; the gyro bias drifts the integrated body attitude C_b^b0 by ε t on every
+        # axis, which a navigation-grade gyro's 0.01°/h keeps under 0.001° and a MEMS gyro's 200°/h makes 1.7° in 30 s;
+        # and until manoeuvres tell them apart, an accelerometer bias ∇ is a tilt of ∇/g (1 mg: 0.06°)
+        drift2 = (grade.gyro_bias_rad_s * max(elapsed_s, 0.0)) ** 2
+        tilt2 = (grade.acc_bias_ms2 / self.source.site.gravity) ** 2
+        heading = np.sqrt(factor**2 * heading_var + drift2)
+        level = np.sqrt(factor**2 * level_var + drift2 + tilt2)
+        return min(float(heading / DEG), SIGMA_UNKNOWN_DEG), min(float(level / DEG), SIGMA_UNKNOWN_DEG)

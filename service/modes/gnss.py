@@ -67,9 +67,11 @@ def gnss_measurements(fix: np.ndarray, gyro_rate: np.ndarray) -> list[tuple[str,
 def gnss_handover(p: AlignmentPipeline, mode: KalmanMode, t_end: float, elapsed_s: float, q_b_b0: np.ndarray,
                   fix: np.ndarray, gyro_rate: np.ndarray) -> None:
     """Start ``p``'s filter from the coarse solution and one fix (and the gyro rate, rad/s) once the alignment has
-    run ``aiding.gnss.handover_s`` and the coarse heading σ is within the mode's limit."""
+    run ``aiding.gnss.handover_s`` (or earlier, once the gyro's drift outweighs the fit's noise: the coarse σ only
+    grows from there) and the coarse heading σ is within the mode's limit."""
     ad = p.config.aiding
-    if not np.isfinite(fix).all() or elapsed_s + 1e-9 < ad.gnss.handover_s:
+    if not np.isfinite(fix).all() or (elapsed_s + 1e-9 < ad.gnss.handover_s
+                                      and not p.coarse.drift_dominates(elapsed_s)):
         return
     solution = mode.handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
                                                           "(manoeuvre)"))
