@@ -100,6 +100,11 @@ class Measurement(Protocol):
         ...
 
 
+CONTRADICTED_S = 5.0
+"""Filter time (s) of unbroken gate rejections of one measurement kind after which the filter's σ is not believed:
+longer than a receiver's glitch (a second or two), short against an alignment."""
+
+
 @dataclass(slots=True)
 class MeasurementCounters:
     accepted: int = 0
@@ -134,6 +139,7 @@ class ErrorStateFilter:
         self.omega_eb_b = np.zeros(3)
         self._C_b_b0 = np.eye(3)
         self.elapsed_s = 0.0
+        self._rejecting_since: dict[str, float] = {}   # kind → elapsed_s of the first of its unbroken rejections
 
     @property
     def active(self) -> bool:
@@ -181,6 +187,7 @@ class ErrorStateFilter:
             self.P[PHI, DV] = self.P[DV, PHI].T
             self.P[DV, DV] += coupling @ self.P[PHI, PHI] @ coupling.T
         self.elapsed_s = 0.0
+        self._rejecting_since.clear()
 
     def _rates(self, V_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lat, h = self.position[0], self.position[2]
@@ -252,7 +259,9 @@ class ErrorStateFilter:
         S = H @ PHt + R
         if not float(nu @ np.linalg.solve(S, nu)) <= self.gate_chi2:
             self.counters[name].rejected += 1
+            self._rejecting_since.setdefault(name, self.elapsed_s)
             return False
+        self._rejecting_since.pop(name, None)
         K = np.linalg.solve(S, PHt.T).T
         self.x = self.x + K @ nu
         I_KH = np.eye(self.n_states) - K @ H
@@ -270,6 +279,15 @@ class ErrorStateFilter:
             omega_ie, omega_en = self._rates(self.V_n)
             C_n_n0 = C_n_n0 @ rotation_matrix((omega_ie + omega_en) * since_step_s)
         return C_n_n0.T @ self.C_b0_n0 @ C_b_b0
+
+    def contradicted(self) -> tuple[str, float] | None:
+        """(kind, s) of a measurement kind whose every update the gate has rejected for at least
+        :data:`CONTRADICTED_S` of filter time, the longest such run; None if none has. A glitch is rejected for
+        about its own length; a filter whose model does not fit its data (an IMU far worse than its datasheet:
+        a MEMS gyro stated as tactical rejected 97 % of its fixes and reported 6° off under σ 0.08°) rejects on."""
+        runs = [(name, self.elapsed_s - since) for name, since in self._rejecting_since.items()]
+        longest = max(runs, key=lambda run: run[1], default=None)
+        return longest if longest is not None and longest[1] >= CONTRADICTED_S else None
 
     @property
     def sigma(self) -> AttitudeSigma:

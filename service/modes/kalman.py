@@ -15,6 +15,7 @@ from ...protocol.results import ResultRecord
 from ..align.coarse import AttitudeSolution, InertialCoarseAlignment
 from ..align.conventions import dcm_from_quat, quat_from_dcm
 from ..align.kalman import ErrorStateFilter
+from ..align.sensor_model import SIGMA_UNKNOWN_DEG
 from ..records import coarse_record, result_record
 
 if TYPE_CHECKING:
@@ -111,7 +112,17 @@ class KalmanMode:
         sigma = p.fine.sigma
         C_b_n = p.fine.attitude(dcm_from_quat(q_b_b0), t_sample - p.t_step)
         m = self.sigma_margin
-        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), m * sigma.heading_deg, m * sigma.level_deg,
+        heading_sigma_deg, level_sigma_deg = m * sigma.heading_deg, m * sigma.level_deg
+        contradicted = p.fine.contradicted()
+        if contradicted is not None:
+            # the filter does not fit its data: its σ says nothing, and the operator is told why once
+            heading_sigma_deg = level_sigma_deg = SIGMA_UNKNOWN_DEG
+            name, seconds = contradicted
+            p.last_notice = p.last_notice or (
+                f"the Kalman stage has rejected every {name} update for {seconds:.1f} s: its model does not fit the "
+                "data (an IMU worse than its datasheet, a wrong lever arm or latency); σ is unknown until it fits "
+                "again: check [sensor] or the log's datasheet keys")
+        solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), heading_sigma_deg, level_sigma_deg,
                                     coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
         aligned = solution.heading_sigma_deg <= threshold
         return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)

@@ -17,13 +17,15 @@ from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.earth import C_n_n0_fixed
 from sinsalign.service.align.gnss_aided import C_n_e, earth_turn
+from sinsalign.service.align.sensor_model import SIGMA_UNKNOWN_DEG
 from sinsalign.service.config import config_from_mapping
 from sinsalign.service.pipeline import build_pipeline
+from sinsalign.tools.evaluate_gnss import GLITCHES
 from sinsalign.tools.replay import replay
 from sinsalign.tools.sim.aiding import gnss_epochs, with_gnss_faults
 from sinsalign.tools.sim.files import write_simulation
 from sinsalign.tools.sim.imu import simulate
-from sinsalign.tools.sim.scenarios import get_scenario
+from sinsalign.tools.sim.scenarios import TACTICAL_GRADE, get_scenario
 from support.aided_runs import errors_deg, process_simulation
 from support.poor_imus import poor_imu
 
@@ -338,3 +340,25 @@ def test_a_mems_or_tactical_imu_is_honest_and_reaches_the_filter(gyro_bias_deg_h
     assert np.all(np.abs(errors[:, 2]) <= 3.0 * heading_sigma)
     assert np.all(np.abs(errors[:, :2]) <= 3.0 * level_sigma[:, None])   # σ of each tilt
     assert records[-1].phase == "aligned" and records[-1].heading_sigma_deg < 0.1
+
+
+def test_a_filter_that_rejects_its_fixes_does_not_keep_its_sigma():
+    """A MEMS IMU (200°/h, 2 mg) whose log states a tactical datasheet (1°/h, 300 µg): the filter's model cannot
+    follow the data and its gate rejects nearly every fix; without the check it reported `aligned` 6° off under
+    σ 0.08°. After 5 s of unbroken rejections its σ is unknown, nothing is converged, and the operator is told."""
+    scenario = replace(poor_imu("seed004", 0, 200.0, 0.3, 2000.0), duration_s=100.0, grade=TACTICAL_GRADE)
+    counters = {}
+    records = run_gnss(scenario, seed=0, counters=counters)
+    assert counters["gnss_vel_rejected"] > 10 * counters["gnss_vel_accepted"]
+    late = [r for r in records if r.t >= 60.0]
+    assert all(r.heading_sigma_deg == SIGMA_UNKNOWN_DEG and not r.converged for r in late)
+
+
+def test_a_glitch_does_not_make_the_filter_contradicted():
+    """The 1-s velocity and position glitches of the fault set are rejected for about their length: σ stays the
+    filter's."""
+    scenario = replace(get_scenario("seed004"), duration_s=160.0)
+    counters = {}
+    records = run_gnss(scenario, seed=3, faults={"glitches": GLITCHES}, counters=counters)
+    assert counters["gnss_vel_rejected"] >= 10 and counters["gnss_pos_rejected"] >= 10   # a second of updates each
+    assert all(r.heading_sigma_deg < 1.0 for r in records if r.t >= 40.0)
