@@ -284,7 +284,7 @@ class ErrorStateFilter:
         """(kind, s) of a measurement kind whose every update the gate has rejected for at least
         :data:`CONTRADICTED_S` of filter time, the longest such run; None if none has. A glitch is rejected for
         about its own length; a filter whose model does not fit its data (an IMU far worse than its datasheet:
-        a MEMS gyro stated as tactical rejected 97 % of its fixes and reported 6° off under σ 0.08°) rejects on."""
+        a MEMS gyro stated as tactical rejects 97 % of its fixes, 6° off under σ 0.08°) rejects on."""
         runs = [(name, self.elapsed_s - since) for name, since in self._rejecting_since.items()]
         longest = max(runs, key=lambda run: run[1], default=None)
         return longest if longest is not None and longest[1] >= CONTRADICTED_S else None

@@ -98,8 +98,8 @@ class FixedBase:
             return False
         # the noise part only: the bias floor stays whatever the stage, and above the threshold
         # for a poor gyro it would keep the loops from ever starting; but a heading at the unknown angle's σ has no
-        # noise part to speak of (a bias limit beyond the cap left 0 of it, and a 200°/h gyro's loops started with
-        # no heading uncertainty at 10 s, their levels 7° off under σ 0.13°)
+        # noise part to speak of (a bias limit beyond the cap would leave 0 of it, and a 200°/h gyro's loops would
+        # start with no heading uncertainty at 10 s, their levels 7° off under σ 0.13°)
         heading_sigma_deg, level_sigma_deg = p.coarse.sigma(elapsed_s)
         if heading_sigma_deg >= SIGMA_UNKNOWN_DEG:
             return False

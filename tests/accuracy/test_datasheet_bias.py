@@ -3,8 +3,8 @@
 GIVEN a fixed base (static or swinging, seed 001) whose gyros have 0.1°/h or 1°/h of bias on every axis while the
 log's datasheet states 0.02°/h, THEN the residual's t² trend shows the bias, the operator is told, and σ takes it:
 no record is converged while more than 3σ off, and σ stays within 10× the error at the end (honest, not useless).
-Without the check the static base reported `aligned`, converged, 1.97° off under a σ of 0.09°. GIVEN gyros at the
-datasheet's bias, THEN nothing is told and σ keeps the datasheet's bias.
+Without the check the static base would be reported `aligned`, converged, 1.97° off under a σ of 0.09°. GIVEN gyros
+at the datasheet's bias, THEN nothing is told and σ keeps the datasheet's bias.
 """
 from __future__ import annotations
 

@@ -3,7 +3,7 @@
 When a base meant to stay in place moves, the records are ``disturbed``: the estimate of the detection window's start,
 carried on by the gyros. GIVEN a swinging base driven off 1 s into its alignment, THEN that estimate had 1 s of data
 and its σ says so: the heading is unknown (σ 103.9°, the cap of an unknown angle). The σ of the estimate at the
-detection, 2 s later, is 3.8°, and the carried heading was up to 180° off under it. GIVEN gyros whose output is 57×
+detection, 2 s later, is 3.8°, and the carried heading is up to 180° off. GIVEN gyros whose output is 57×
 too large (°/s read as rad/s) on a static base, THEN the same holds: the misread rotation looks like motion at once,
 and every disturbed record's σ covers its error (149° off under 3.8° without it). The bias the data then show, far
 beyond the Earth's rate, points the operator at the gyros' units and the time base.

@@ -2,8 +2,8 @@
 
 GIVEN a static or swinging base with a MEMS IMU (200°/h, 0.3°/√h, 2 mg) or one of 10°/h, its datasheet stating so,
 THEN the heading is unknown and σ says so, and the levels stay within 3σ at every record. The compass loops are not
-started from an unknown heading: its bias limit beyond the unknown angle's cap left a "noise part" of 0 to hand over,
-and the 200°/h loops ran from 10 s with no heading uncertainty, their levels 4–7° off under σ 0.13° (60σ).
+started from an unknown heading: its bias limit beyond the unknown angle's cap would leave a "noise part" of 0 to
+hand over, and the 200°/h loops would run from 10 s with no heading uncertainty, their levels 4–7° off under σ 0.13°.
 """
 from __future__ import annotations
 

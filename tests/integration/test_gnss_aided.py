@@ -328,10 +328,10 @@ def test_a_5_hz_receiver_gives_one_observation_and_one_update_per_fix_and_stays_
 def test_a_mems_or_tactical_imu_is_honest_and_reaches_the_filter(gyro_bias_deg_h, gyro_arw_deg_rth, acc_bias_ug,
                                                                    seed):
     """The coarse σ takes the gyro's drift ε t and the accelerometer bias's tilt ∇/g: without them a MEMS IMU's
-    coarse levels were 1.2° off under σ 0.06°, its filter, seeded from that σ, converged 0.66° off under 0.09°, and a
-    tactical IMU's levels were 0.09° off under 0.011°. Once the drift outweighs the fit's noise the coarse σ only
-    grows, and the filter starts then rather than at ``handover_s``: a MEMS gyro's coarse heading σ passes the 1°
-    hand-over limit before 30 s, and the filter would never start."""
+    coarse levels would be 1.2° off under σ 0.06°, its filter, seeded from that σ, would converge 0.66° off under
+    0.09°, and a tactical IMU's levels would be 0.09° off under 0.011°. Once the drift outweighs the fit's noise the
+    coarse σ only grows, and the filter starts then rather than at ``handover_s``: a MEMS gyro's coarse heading σ
+    passes the 1° hand-over limit before 30 s, and the filter would never start."""
     scenario = replace(poor_imu("seed004", seed, gyro_bias_deg_h, gyro_arw_deg_rth, acc_bias_ug), duration_s=100.0)
     records = run_gnss(scenario, seed=seed)
     _, errors = errors_deg(scenario.for_seed(seed), records)
@@ -344,8 +344,8 @@ def test_a_mems_or_tactical_imu_is_honest_and_reaches_the_filter(gyro_bias_deg_h
 
 def test_a_filter_that_rejects_its_fixes_does_not_keep_its_sigma():
     """A MEMS IMU (200°/h, 2 mg) whose log states a tactical datasheet (1°/h, 300 µg): the filter's model cannot
-    follow the data and its gate rejects nearly every fix; without the check it reported `aligned` 6° off under
-    σ 0.08°. After 5 s of unbroken rejections its σ is unknown, nothing is converged, and the operator is told."""
+    follow the data and its gate rejects nearly every fix; without the check it would report `aligned` 6° off
+    under σ 0.08°. After 5 s of unbroken rejections its σ is unknown, nothing is converged, and the operator is told."""
     scenario = replace(poor_imu("seed004", 0, 200.0, 0.3, 2000.0), duration_s=100.0, grade=TACTICAL_GRADE)
     counters = {}
     records = run_gnss(scenario, seed=0, counters=counters)
