@@ -37,7 +37,7 @@ import numpy as np
 from .coarse import InertialCoarseAlignment
 from .conventions import DEG, cross, dcm_from_quat
 from .earth import OMEGA_IE, Site, ecef_from_geodetic, normal_gravity, radii
-from .sensor_model import SIGMA_UNKNOWN_DEG
+from .sensor_model import SIGMA_UNKNOWN_DEG, bias_limit_rad
 
 GNSS_COLUMNS = 6
 """lat_deg, lon_deg, h_m, vE, vN, vU of the antenna (the pinned GNSS log's columns after t)."""
@@ -334,8 +334,13 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
         """Whether the gyro's drift ε t already outweighs the fit's heading noise: the coarse σ only grows from here
         (a MEMS gyro's after some seconds; a navigation-grade gyro's never within an alignment)."""
         covariance = self.solver.covariance()
-        drift = self.sigma_grade.gyro_bias_rad_s * max(elapsed_s, 0.0)
-        return covariance is not None and drift * drift >= self.source.sigma_factor**2 * covariance[2, 2]
+        return covariance is not None and self._drift2(elapsed_s) >= self.source.sigma_factor**2 * covariance[2, 2]
+
+    def _drift2(self, elapsed_s: float) -> float:
+        """(ε t)² (rad²): the fit takes C_b0^n0 as constant; the gyro bias drifts the integrated body attitude C_b^b0
+        by ε t on every axis, which a navigation-grade gyro's 0.01°/h keeps under 0.001° and a MEMS gyro's 200°/h
+        makes 1.7° in 30 s."""
+        return (self.sigma_grade.gyro_bias_rad_s * max(elapsed_s, 0.0)) ** 2
 
     def sigma(self, elapsed_s: float) -> tuple[float, float]:
         covariance = self.solver.covariance()
@@ -344,12 +349,9 @@ class GnssCoarseAlignment(InertialCoarseAlignment):
         heading_var, level_var = covariance[2, 2], 0.5 * (covariance[0, 0] + covariance[1, 1])
         if not (heading_var > 0.0 and level_var > 0.0):   # a fit not yet determined (or NaN): not a σ of 0 or NaN
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
-        factor, grade = self.source.sigma_factor, self.sigma_grade
-        # the fit takes C_b0^n0 as constant; the gyro bias drifts the integrated body attitude C_b^b0 by ε t on every
-        # axis, which a navigation-grade gyro's 0.01°/h keeps under 0.001° and a MEMS gyro's 200°/h makes 1.7° in 30 s;
-        # and until manoeuvres tell them apart, an accelerometer bias ∇ is a tilt of ∇/g (1 mg: 0.06°)
-        drift2 = (grade.gyro_bias_rad_s * max(elapsed_s, 0.0)) ** 2
-        tilt2 = (grade.acc_bias_ms2 / self.source.site.gravity) ** 2
+        factor, drift2, site = self.source.sigma_factor, self._drift2(elapsed_s), self.source.site
+        # until manoeuvres tell them apart, an accelerometer bias ∇ is a tilt of ∇/g (1 mg: 0.06°): the bias limit's
+        _, tilt = bias_limit_rad(self.sigma_grade, site.lat, site.gravity)
         heading = np.sqrt(factor**2 * heading_var + drift2)
-        level = np.sqrt(factor**2 * level_var + drift2 + tilt2)
+        level = np.sqrt(factor**2 * level_var + drift2 + tilt**2)
         return min(float(heading / DEG), SIGMA_UNKNOWN_DEG), min(float(level / DEG), SIGMA_UNKNOWN_DEG)
