@@ -82,6 +82,8 @@ def _fold_to(solver: RecursiveK | CentredWahba, dK: np.ndarray, trace_R: np.ndar
 
 UNTOUCHED = -1
 """A block the compiled loop has not begun (:mod:`~service.align._blocks`' stages)."""
+CONTRADICTED = -2
+"""A block whose records contradicted the earlier estimates: the alignment restarts at its end, unfolded."""
 
 
 def fixed_base_blocks(pipeline: AlignmentPipeline) -> FixedBaseBlocks | None:
@@ -409,36 +411,34 @@ class AlignmentPipeline:
                     records.append(self._record(round(float(counts[j]) * self.period_s, 9), float(t[j]), q_b_b0[j],
                                                 self.coarse))
                     self._emitted_count = int(counts[j])
-            if self._contradiction is not None:   # an estimate of this block's records contradicts the earlier ones
-                end = ends[b]
-                self._restart_contradicted(float(t[end]))
+            stage = CONTRADICTED if self._contradiction is not None else UNTOUCHED
+            if blocks is not None and stage == UNTOUCHED:
+                limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
+                resume = False
+                while limit > b and self._blocks_ready():
+                    b, stage, folded = blocks.run(self, b, limit, folded, measured, resume)
+                    if stage != VERDICT:
+                        break
+                    self._take_verdict()   # then the block's control step, compiled again
+                    stage, resume, measured = CONTROL, True, folded
+                if stage == DONE:
+                    continue
+            end = ends[b]
+            step = (float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end], None if aid is None else aid[end],
+                    None if aid_epoch is None else aid_epoch[end])
+            if stage == CONTRADICTED:   # an estimate of this block's records contradicts the earlier ones
+                self._restart_contradicted(step[0])
+            elif stage == CONTROL:   # the compiled loop folded and measured the block
+                self._control_step(*step)
+            elif stage == MOTION:   # … and took its control step but for the motion check
+                self._check_motion(step[0], step[1], step[3])
             else:
-                stage = UNTOUCHED
-                if blocks is not None:
-                    limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
-                    resume = False
-                    while limit > b and self._blocks_ready():
-                        b, stage, folded = blocks.run(self, b, limit, folded, measured, resume)
-                        if stage != VERDICT:
-                            break
-                        self._take_verdict()   # then the block's control step, compiled again
-                        stage, resume, measured = CONTROL, True, folded
-                    if stage == DONE:
-                        continue
-                end = ends[b]
-                step = (float(t[end]), float(elapsed[end]), q_b_b0[end], alpha[end],
-                        None if aid is None else aid[end], None if aid_epoch is None else aid_epoch[end])
-                if stage == CONTROL:   # the compiled loop folded and measured the block
-                    self._control_step(*step)
-                elif stage == MOTION:   # … and took its control step but for the motion check
-                    self._check_motion(step[0], step[1], step[3])
-                else:
-                    folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
-                    observed = observed_s[measured:folded], observed_alpha[measured:folded]
-                    if self._defer_control and end + 1 == len(t):
-                        self._deferred = observed, step   # the chunk's last block: its records leave first
-                        return
-                    self._finish_block(*observed, *step)
+                folded = _fold_to(solver, dK, trace_R, folded, fold_end[b])
+                observed = observed_s[measured:folded], observed_alpha[measured:folded]
+                if self._defer_control and end + 1 == len(t):
+                    self._deferred = observed, step   # the chunk's last block: its records leave first
+                    return
+                self._finish_block(*observed, *step)
             if self._restarted:   # new estimators: they integrate the rest of the chunk themselves
                 self._restarted = False
                 if end + 1 < len(t):
