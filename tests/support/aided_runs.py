@@ -1,6 +1,10 @@
 """Shared by the aided-mode tests: a simulated seed through a pipeline with its aiding feed, and its errors."""
 import numpy as np
+from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
+from sinsalign.service.config import config_from_mapping
+from sinsalign.service.pipeline import build_pipeline
+from sinsalign.tools.sim.aiding import master_epochs, with_master_faults
 from sinsalign.tools.sim.imu import simulate
 
 
@@ -20,3 +24,15 @@ def errors_deg(scenario, records):
     """Output epochs t (N,) in s and the misalignment φ (N, 3: E, N, U) of ``records`` against the truth, degrees."""
     t = np.array([r.t for r in records])
     return t, misalignment(dcm_from_quat(np.array([r.q for r in records])), scenario.motion.attitude(t)) / DEG
+
+
+def run_transfer(scenario, seed=1, overrides=None, faults=None, piece=None):
+    """(records, pipeline) of the transfer pipeline over a simulated seed (configuration ``overrides``, master
+    ``faults`` of :func:`with_master_faults`, the stream fed ``piece`` samples at a time)."""
+    scenario = scenario.for_seed(seed)
+    config = config_from_mapping(overrides or {})
+    pipeline = build_pipeline(config, scenario.site, scenario.rate_hz, scenario.grade.datasheet(), ["master"])
+    epochs = with_master_faults(master_epochs(scenario, seed), **(faults or {}), seed=seed)
+    feed = AidingFeed(AidingTrack(10, config.aiding.master.latency_s, config.aiding.max_gap_s), iter([epochs]))
+    records = process_simulation(pipeline, scenario, seed, feed, piece)
+    return records, pipeline

@@ -254,12 +254,13 @@ SEED002_MOUNT_DEG = (20.0, 20.0, 20.0)
 
 
 def seed002_flight(mount_deg: tuple[float, float, float] = SEED002_MOUNT_DEG,
-                   lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> MountedMotion:
+                   lever_m: tuple[float, float, float] = (0.0, 0.0, 0.0), first_rock_s: float = 1.0) -> MountedMotion:
     """Seed 002's transfer-alignment run: 50 m/s north, level, with three 30° wing rocks (roll up in 2.5 s,
-    back in 2.5 s, from 1, 21 and 41 s), 60 s; the slave IMU mounted (heading, pitch, roll) ``mount_deg`` off
-    the master (C_bs^bm from those Euler angles), at ``lever_m`` from the master's point (master body axes)."""
-    roll = AngleProfile(0.0, steps=((1.0, 30 * DEG), (5.0, 0.0), (21.0, 30 * DEG), (25.0, 0.0), (41.0, 30 * DEG),
-                                    (45.0, 0.0)), transition_s=2.5)
+    back in 2.5 s 4 s later, from ``first_rock_s``, 20 s and 40 s after it: 1, 21 and 41 s), 60 s; the slave IMU
+    mounted (heading, pitch, roll) ``mount_deg`` off the master (C_bs^bm from those Euler angles), at ``lever_m``
+    from the master's point (master body axes)."""
+    roll = AngleProfile(0.0, steps=tuple((first_rock_s + start + up, angle) for start in (0.0, 20.0, 40.0)
+                                         for up, angle in ((0.0, 30 * DEG), (4.0, 0.0))), transition_s=2.5)
     vehicle = VehicleMotion(SEED002_SITE, 60.0, AngularMotion(roll=roll), AngleProfile(50.0))
     M = dcm_from_euler(*(np.array(mount_deg) * DEG))
     return MountedMotion(vehicle, tuple(tuple(float(v) for v in row) for row in M), lever_m)
