@@ -230,10 +230,9 @@ class MasterConfig:
     """A master INS (``--aid master``, transfer alignment): its attitude, velocity and position.
 
     Phase 2 (the Kalman filter) starts at ``handover_s`` if set (the seed's fixed 10 s), else once phase 1's σ is
-    at most ``handover_sigma_deg`` (phase 1 hands its errors over with their correlations), or within the filter's
-    linear range (``linear_sigma_deg``, at most √(2 att_std)) and no longer improving, as with a MEMS slave that
-    never reaches the first: the filter then runs over the data from the first master epoch, about phase 1's
-    mounting.
+    at most ``handover_sigma_deg``, or within the filter's linear range (``linear_sigma_deg``, at most
+    √(2 att_std)) and no longer improving, as with a MEMS slave that never reaches the first. Either way the
+    filter then runs over the data from the first master epoch, about phase 1's mounting.
     """
 
     latency_s: float = _seconds(0.0, 0.0, 10.0, doc="its time stamps are this late")

@@ -27,8 +27,8 @@ from .coarse import InertialCoarseAlignment
 from .conventions import DEG, dcm_from_quat, quat_from_dcm, rotvec_from_quat
 from .earth import Site
 from .gnss_aided import GnssVelocitySource
-from .kalman import ACC_BIAS, PHI, ErrorStateFilter
-from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade
+from .kalman import PHI, ErrorStateFilter
+from .sensor_model import SIGMA_UNKNOWN_DEG
 
 MASTER_COLUMNS = 10
 """qw, qx, qy, qz (the master's C_bm^n), vE, vN, vU, lat_deg, lon_deg, h_m (the pinned log's columns after t)."""
@@ -238,34 +238,6 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
         # beyond ~10° the fit's linearised covariance means nothing (before the first roll: 170° off at σ 18°)
         heading = SIGMA_UNKNOWN_DEG * DEG if heading > LINEAR_LIMIT_DEG * DEG else heading
         return min(heading / DEG, SIGMA_UNKNOWN_DEG), min(float(level) / DEG, SIGMA_UNKNOWN_DEG)
-
-
-def correlate_handover(f: ErrorStateFilter, C_b_n: np.ndarray, heading_noise_rad: float, level_noise_rad: float,
-                       grade: SensorGrade, gravity: float) -> None:
-    """Phase 1's errors as the filter must start with them: one error, three views.
-
-    The slave's attitude is the master's through M_ref, so its error φ = C_bs^n μ is the mounting's μ seen in
-    n axes (attitude matching alone cannot tell them apart: its innovation φ + C_bs^n (μ̂ − μ) starts at 0).
-    And the velocity pairs hid the accelerometer bias ∇ as a tilt, f^n × φ = −C_bs^n ∇ horizontally:
-    φ_E = −(C∇)_N / g, φ_N = (C∇)_E / g. So φ = A ∇ + n (n: the fit's noise), μ = C_bs^nᵀ φ, and the covariance
-    of (φ, μ, ∇) is J Σ Jᵀ with Σ of (∇, n). Started uncorrelated, the filter took the first velocity misfit
-    for a tilt and the first attitude misfit for a slave error: 8σ heading and 4σ level errors at 1-5 s.
-    """
-    A = np.array([[0.0, -1.0 / gravity, 0.0], [1.0 / gravity, 0.0, 0.0], [0.0, 0.0, 0.0]]) @ C_b_n
-    mu = f.extra_slice("master_att")
-    J = np.zeros((f.n_states, 6))
-    J[PHI, :3], J[PHI, 3:] = A, np.eye(3)
-    J[mu, :3], J[mu, 3:] = C_b_n.T @ A, C_b_n.T
-    J[ACC_BIAS, :3] = np.eye(3)
-    # the tilt may also be free of ∇: once the body has rolled, phase 1 has partly told them apart
-    level_rad = np.hypot(level_noise_rad, grade.acc_bias_ms2 / gravity)
-    Sigma = np.diag([grade.acc_bias_ms2**2] * 3 + [level_rad**2] * 2 + [heading_noise_rad**2])
-    states = np.r_[np.arange(PHI.start, PHI.stop), np.arange(mu.start, mu.stop),
-                   np.arange(ACC_BIAS.start, ACC_BIAS.stop)]
-    block = (J @ Sigma @ J.T)[np.ix_(states, states)]
-    # the master's own attitude noise on top of the slave's attitude error
-    block[:3, :3] += np.eye(3) * f.measurements["master_att"].std_rad ** 2
-    f.set_covariance(states, block)
 
 
 def linear_range_rad(att_std_rad: float) -> float:

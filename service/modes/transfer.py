@@ -5,10 +5,10 @@ Phase 1 (``coarse``) is the inertial-frame stage with the master source (service
 attitude pairs r = M b solved in closed form for the mounting M = C_bs^bm, whatever its size. Phase 2 (``fine`` →
 ``aligned``) is the error-state Kalman filter with velocity matching (the master's velocity, with the lever arm as
 states) and attitude matching (the mounting as states), from the first control step at which phase 1's σ is within
-``aiding.master.handover_sigma_deg`` (it starts from phase 1's answer), or at ``aiding.master.handover_s`` (the
-seed's fixed 10 s), or within the filter's linear range and no longer improving (a MEMS slave: it starts at the
-first kept master epoch about phase 1's mounting and runs over the steps since, :meth:`Transfer._catch_up`). The
-slave's attitude is the output; every record carries the mounting with its σ (:meth:`Transfer.mounting`).
+``aiding.master.handover_sigma_deg``, or at ``aiding.master.handover_s`` (the seed's fixed 10 s), or within the
+filter's linear range and no longer improving (a MEMS slave). It starts at the first kept master epoch about phase
+1's mounting and runs over the steps since (:meth:`Transfer._catch_up`). The slave's attitude is the output; every
+record carries the mounting with its σ (:meth:`Transfer.mounting`).
 """
 from __future__ import annotations
 
