@@ -16,9 +16,9 @@ velocity from the integrals, and a clipped one puts a wrong one in. So, per deco
 - a longer gap, or a saturated (full-scale) value → the alignment restarts from the next good
   sample (``restarts``, with the reason in ``last_error``), in the call that brings it if not this
   one: nothing converged survives on data the estimator never saw;
-- time stamps that do not step at the stated rate (rate_check.py: the median of the first 100 steps) → the
-  alignment restarts at once and every sample is dropped (``rate_mismatch``, the two periods in ``last_error``)
-  until 100 steps in a row do.
+- time stamps that do not step at the stated rate (rate_check.py: the median of each window of 100 steps, for the
+  whole run) → the alignment restarts at once and every sample is dropped (``rate_mismatch``, the two periods in
+  ``last_error``) until 100 steps in a row do.
 """
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ from ..protocol.serial_frame import IMU_ROW_COLUMNS
 from ._gate import plain_rows, screen
 from .align.conventions import DEG
 from .config import Config
-from .rate_check import RateCheck
+from .rate_check import RATE_CHECK_STEPS, RATE_TOLERANCE, RateCheck
 
 SAMPLE_COLUMNS = IMU_ROW_COLUMNS
 """The one row a decoded IMU sample travels in from every decoder to the pipeline: t (s), Δθ (3) rad, Δv (3) m/s,
@@ -85,6 +85,7 @@ class SampleGate:
     _last: np.ndarray | None = None     # the last row admitted: t (s), Δθ (rad), Δv (m/s)
     _restart_reason: str | None = None   # a cut no segment has carried yet: why the next segment restarts
     _behind: list[np.ndarray] = field(default_factory=list)   # samples in a row behind _last, in time order
+    _held: np.ndarray = field(default_factory=lambda: np.empty((0, 7)))   # held by _release, in arrival order
 
     def __post_init__(self) -> None:
         self.rate = RateCheck(self.rate_hz, self.rate_stated_as)
@@ -94,25 +95,48 @@ class SampleGate:
         a segment carries the restart of every cut since the previous segment, whichever call made it. A segment
         without rows only restarts the alignment: the samples do not step at the stated rate (``rate.failure``).
 
-        Until the time stamps have been seen to step at the stated rate, the samples of each window judged are
-        admitted (the first window's) or dropped (after a window that did not)."""
-        if self.rate.settled:
-            return self._admit(samples)
+        The samples of each window of the rate check are admitted or dropped by the verdict of the window before
+        (the first one's admitted): a window that does not step at the stated rate restarts the alignment and drops
+        every sample until one does, at any time in the run."""
         segments: list[Segment] = []
-        while len(samples) and not self.rate.settled:
+        while len(samples):
             refusing = self.rate.failure is not None
             taken = self.rate.take(samples[:, 0])
             if refusing:
                 self.counters.rate_mismatch += taken
             else:
-                segments += self._admit(samples[:taken])
+                segments += self._admit(self._release(samples[:taken]))
             samples = samples[taken:]
             if self.rate.failure is not None:
                 self.last_error = (f"{self.rate.failure}: no sample is aligned until they do (set "
                                    f"{self.rate_stated_as} to the IMU's rate)")
                 if not refusing:
+                    self.counters.rate_mismatch += len(self._held)
+                    self._held = self._held[:0]
                     self._stop(segments)
-        return segments + self._admit(samples) if len(samples) else segments
+        return segments
+
+    def _release(self, samples: np.ndarray) -> np.ndarray:
+        """The samples (held ones first) that may go to the rules now: all but a trailing run whose every step is
+        not one sample period (within the rate check's tolerance), held until a step that is one (a frame or two
+        lost: a sample period late) or the rate check's verdict (a rate that changed: dropped with the window that
+        shows it). Admitted at once, a 100-Hz stream read as 200 Hz had every sample doubled by bridging and the
+        heading 3.4° off under σ 0.05° within the second its window takes."""
+        if len(self._held):
+            samples = np.concatenate((self._held, samples))
+        t = samples[:, 0]
+        clock = np.abs(t) <= MAX_TIME_S   # a time no clock reads is dropped by the rules: it holds nothing
+        before = np.nan if self._last is None else self._last[0]
+        t_clock = t[clock]
+        steps = np.diff(t_clock, prepend=before) * self.rate_hz
+        odd = np.zeros(len(t), dtype=bool)
+        odd[clock] = ~((RATE_TOLERANCE[0] <= steps) & (steps <= RATE_TOLERANCE[1])) & ~np.isnan(steps)
+        sound = np.flatnonzero(~odd)
+        end = sound[-1] + 1 if len(sound) else 0
+        if len(samples) - end > 2 * RATE_CHECK_STEPS:
+            end = len(samples)   # the rate check has passed such a run: odd steps of a sound rate
+        self._held = samples[end:].copy()
+        return samples[:end]
 
     def _admit(self, samples: np.ndarray) -> list[Segment]:
         """:meth:`admit` once the samples step at the stated rate.
@@ -181,8 +205,9 @@ class SampleGate:
     def new_time_base(self) -> None:
         """The samples from here on may start a new time base (a recording's restart marker: the alignment started
         over there, perhaps on a sensor's restarted clock): none before them is the last admitted, and their rate
-        is judged afresh."""
-        self._last, self._behind, self._restart_reason = None, [], None
+        is judged afresh. Samples still held for their odd steps go with the old time base (``rate_mismatch``)."""
+        self.counters.rate_mismatch += len(self._held)
+        self._last, self._behind, self._restart_reason, self._held = None, [], None, self._held[:0]
         self.rate.restart()
 
     def _stop(self, segments: list[Segment]) -> None:

@@ -161,9 +161,10 @@ def test_the_daemon_tells_when_the_data_are_far_noisier_than_its_datasheet(tmp_p
 def test_the_daemon_aligns_nothing_on_samples_that_do_not_step_at_its_imu_rate(tmp_path, pty_pair, running,
                                                                                 stated_hz):
     """GIVEN imu.rate_hz twice (or half) the rate of the IMU on the line (60 s of the seed-000 swing at 200 Hz),
-    THEN after the first 101 samples the alignment restarts and takes no sample (no attitude), every later sample
-    is counted as `rate_mismatch`, health degrades, and last_error names both periods and the key to set. At
-    twice the rate every sample would otherwise seem to follow a lost one and be bridged: a heading 165° off."""
+    THEN after the first 101 samples the alignment restarts and takes no sample (no attitude), every sample after the
+    first (held for its step until the verdict) is counted as `rate_mismatch`, health degrades, and last_error names
+    both periods and the key to set. At twice the rate every sample would otherwise seem to follow a lost one and be
+    bridged: a heading 165° off."""
     scenario = get_scenario("seed000-swing")
     sections = daemon_sections(scenario)
     sections["imu"] = {**sections.get("imu", {}), "rate_hz": stated_hz}
@@ -176,13 +177,56 @@ def test_the_daemon_aligns_nothing_on_samples_that_do_not_step_at_its_imu_rate(t
     run.stop()
     statuses = run.subscriber.status
     counters = statuses[-1]["counters"]
-    assert counters["rate_mismatch"] == n - 101 and counters["restarts"] == 1
+    assert counters["rate_mismatch"] == n - 1 and counters["restarts"] == 1   # the first window held, then dropped
     assert counters["samples_used"] - counters["samples_bridged"] <= 101
     assert statuses[-1]["last_error"].startswith(
-        f"samples come every 5 ms (the median of 100 steps), where imu.rate_hz = {stated_hz:g} says "
+        f"samples come every 5 ms (200 Hz, the median of 100 steps), where imu.rate_hz = {stated_hz:g} says "
         f"{1e3 / stated_hz:g} ms: no sample is aligned until they do (set imu.rate_hz to the IMU's rate)")
     assert any(s["health"] == "degraded" for s in statuses)
     assert all(record["t"] <= 101 / 200.0 for record in run.subscriber.attitude)
+
+
+@pytest.mark.parametrize("new_hz", [400.0, 100.0])
+def test_the_daemon_stops_aligning_within_2_s_when_the_imu_rate_changes_late(tmp_path, pty_pair, running, new_hz):
+    """GIVEN an IMU at the configured 200 Hz for 90 s of the seed-000 swing that then changes its output rate to
+    400 Hz (or 100 Hz) on the live line, THEN the alignment restarts within 2 s of data naming both rates, takes no
+    sample after (no attitude, `rate_mismatch` counted, nothing more bridged), and no record before is beyond 3σ.
+    Checked only on the first 100 steps, the 400-Hz stream was reported converged 2.3° off under σ 0.1°, the
+    100-Hz one had every other sample invented by bridging (54 000) and 8.5° of heading error."""
+    scenario = get_scenario("seed000-swing")
+    change_s, fast_hz = 90.0, max(200.0, new_hz)
+    (chunk,) = simulate(scenario.motion, scenario.site, scenario.errors, fast_hz, change_s + 10.0, 1,
+                        chunk_samples=10**6)
+    # the IMU's own outputs at each rate: the fast simulation's increments summed over each output interval
+    before = chunk.t <= change_s + 1e-9
+    parts = [(chunk.t[before], chunk.dtheta[before], chunk.dv[before], int(fast_hz / 200.0)),
+             (chunk.t[~before], chunk.dtheta[~before], chunk.dv[~before], int(fast_hz / new_hz))]
+    t, dtheta, dv = (np.concatenate([summed(part[k], part[3], k == 0) for part in parts]) for k in range(3))
+    run = running(**daemon_sections(scenario))
+    write_stream(pty_pair.master_fd, encode_samples(t, dtheta, dv, 0))
+    wait_until(lambda: run.daemon.ingest.counters.samples_in == len(t))
+    wait_for_status(run.subscriber, samples_in=len(t))
+    run.stop()
+    status = run.subscriber.status[-1]
+    counters = status["counters"]
+    assert counters["restarts"] == 1 and counters["rate_mismatch"] >= len(t) - np.searchsorted(t, change_s + 2.0)
+    assert status["last_error"].startswith(f"samples come every {1e3 / new_hz:g} ms ({new_hz:g} Hz, the median of "
+                                           "100 steps), where imu.rate_hz = 200 says 5 ms")
+    assert counters["samples_bridged"] <= 100
+    records = run.subscriber.attitude
+    assert max(r["t"] for r in records) <= change_s + 2.0
+    record_t, phi = attitude_errors_deg(scenario, records)
+    heading_sigma = np.array([r["heading_sigma_deg"] for r in records])
+    level_sigma = np.array([r["level_sigma_deg"] for r in records])
+    beyond = (np.abs(phi[:, 2]) > 3.0 * heading_sigma) | (np.abs(phi[:, :2]).max(axis=1) > 3.0 * level_sigma)
+    # the coarse stage's first seconds (the swing's own figures, not converged) aside: from 30 s to the last record
+    assert not (beyond & (record_t >= 30.0)).any() and not (beyond & [r["converged"] for r in records]).any()
+
+
+def summed(values: np.ndarray, factor: int, is_time: bool) -> np.ndarray:
+    """Consecutive samples' times (the last of each ``factor``) or increments (their sum)."""
+    grouped = values[:len(values) // factor * factor].reshape(-1, factor, *values.shape[1:])
+    return grouped[:, -1] if is_time else grouped.sum(axis=1)
 
 
 def simulated_run(scenario: Scenario, seconds: float) -> ImuChunk:

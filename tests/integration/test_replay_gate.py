@@ -84,6 +84,6 @@ def test_a_header_rate_that_is_not_the_data_s_is_refused(swing_log: Path, tmp_pa
         replay(log, tmp_path / "out.jsonl", Config(), progress=False)
     first_sample_line = 1 + sum(1 for line in log.read_text().splitlines() if not line[0].isdigit())
     assert (info.value.line, info.value.column) == (first_sample_line, "t")
-    assert f"samples come every 5 ms (the median of 100 steps), where the header's rate_hz = {rate_hz:g} " \
+    assert f"samples come every 5 ms (200 Hz, the median of 100 steps), where the header's rate_hz = {rate_hz:g} " \
            f"says {1e3 / rate_hz:g} ms" in str(info.value)
     assert not (tmp_path / "out.jsonl").exists()
