@@ -344,7 +344,8 @@ class ImuConfig:
     acc_range_g: float = _number(100.0, Range(1.0, MAX_ACC_RANGE_G, why="g"), "accelerometer measurement range")
     counter_only: bool = _flag(False, "stamp a vendor's samples from its counter's steps alone, never from "
                                "arrival times (a bench playing faster than real time: a loss longer than half the "
-                               "counter's wrap is then undercounted)")
+                               "counter's wrap is then undercounted, and the rate is not checked against the "
+                               "host's clock)")
     stim300: Stim300Config = field(default_factory=Stim300Config)
     frame: FrameConfig = field(default_factory=FrameConfig)
 

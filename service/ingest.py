@@ -106,9 +106,12 @@ class Ingest:
     def decode_serial(self, data: bytes, arrival_s: float | None = None) -> np.ndarray:
         """The IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`) that ``data`` completes (any piece of the serial
         stream, in the configured format, arrived at ``arrival_s``: host monotonic clock, s, now if None); its aiding
-        epochs, and a receiver's on the IMU's line, go to :attr:`aiding_inbox`."""
+        epochs, and a receiver's on the IMU's line, go to :attr:`aiding_inbox`, the pace of a vendor's counter stamps
+        on the host's clock (``Decoded.pace``) to the gate's rate check."""
         arrival_s = time.monotonic() if arrival_s is None else arrival_s
         decoded = self.serial_format.feed(data)
+        if decoded.pace is not None:   # counter stamps on the host's clock: a rate their steps cannot show
+            self.gate.rate.host_pace(decoded.pace)
         self.arrival_clock.observe(decoded.samples[:, 0], arrival_s)
         self._hold(decoded)
         if self._receiver_on_imu_line:

@@ -7,6 +7,11 @@ bridged (a swing log replayed 165° off); at half, the estimators' intervals hol
 changes on a live line (200 → 400 Hz) was reported converged 2.3° off under σ 0.1° before anything restarted. The
 median passes a clock a few per cent off its nominal rate, jittered stamps and a line that loses frames now and
 then; a rate 25 % off (a STIM300 at 200 Hz configured as 250 Hz) does not.
+
+A vendor IMU stamped from its counter (protocol/counter_clock.py) steps at whatever its ticks are stamped at: a KVH
+counts one tick a sample, stamped 1/``imu.rate_hz`` apart, so its windows pass at any rate (a KVH at 200 Hz
+configured as 250 Hz, or doubling its rate at 60 s, aligned at the wrong time scale: `coarse` for ever, health
+`ok`). On a real-time line the host's arrival clock tells (:class:`HostPace`): its verdict fails the check too.
 """
 from __future__ import annotations
 
@@ -20,13 +25,54 @@ RATE_CHECK_STEPS = 100
 """Steps in one judgement: 0.5 s at 200 Hz, 20 ms at 5 kHz."""
 RATE_TOLERANCE = (0.95, 1.05)
 """The median step over the stated period that passes: an IMU's oscillator within 5 % of its nominal rate."""
+PACE_SPAN_S = 0.75
+"""Host seconds of reads in one bucket of :class:`HostPace`: some 40 reads of a loop that waits up to 20 ms for
+data, the least lag among them within a few ms of the line's own; two buckets apart (the first verdict at 1.5 s)
+that is ~1 % of pace, well within :data:`RATE_TOLERANCE`."""
+
+
+@dataclass(slots=True)
+class HostPace:
+    """How fast counter time stamps run on the host's clock: the counter's seconds per host second, which is the
+    IMU's true rate over the rate its ticks are stamped at (1.0 on a sound line).
+
+    A read's lead is its newest sample's time ``t`` (the counter's time, anchored once on the host clock: s) less
+    the read's arrival ``arrival_s`` (host monotonic clock, s): minus that sample's lag through the line, the driver
+    and the reader's loop. Lag only adds (frames batched in one read, a loop that was busy), so the largest lead in
+    a bucket of reads is its least lag, the same from bucket to bucket on a sound line; counter time that runs at
+    ``ratio`` of host time moves it by (ratio − 1) s per host second. A bucket holds the reads of
+    :data:`PACE_SPAN_S` from its first; the read that comes later (after a silence too) opens the next, and the
+    pace is taken over the real distance between the two buckets' first reads."""
+
+    span_s: float = PACE_SPAN_S
+    _start_s: float | None = None   # the open bucket's first arrival (host s); None: no read yet
+    _lead_s: float = 0.0            # the open bucket's largest lead (s)
+    _closed: tuple[float, float] | None = None   # the last closed bucket's first arrival and largest lead (s)
+
+    def observe(self, t: float, arrival_s: float) -> float | None:
+        """A read whose newest sample has time ``t`` (s, the counter's) arrived at ``arrival_s`` (s, host) → the
+        counter's seconds per host second from the last closed bucket to the one this read closes; None while it
+        closes none, or the first."""
+        lead = t - arrival_s
+        if self._start_s is not None and arrival_s - self._start_s < self.span_s:
+            self._lead_s = max(self._lead_s, lead)
+            return None
+        pace = None
+        if self._start_s is not None:
+            if self._closed is not None:
+                start_s, lead_s = self._closed
+                pace = 1.0 + (self._lead_s - lead_s) / (self._start_s - start_s)
+            self._closed = (self._start_s, self._lead_s)
+        self._start_s, self._lead_s = arrival_s, lead
+        return pace
 
 
 @dataclass(slots=True)
 class RateCheck:
     """Windows of :data:`RATE_CHECK_STEPS` + 1 sample times, judged one after the other for the whole run: ``settled``
     once one steps at ``rate_hz`` and until one does not; ``failure`` says how the last judged window did not (None:
-    none did not, or one since did)."""
+    none did not, or one since did). A verdict of the host's clock (:meth:`host_pace`) that the samples come at
+    another rate fails the check too, and no window settles it while it stands."""
 
     rate_hz: float
     stated_as: str = "imu.rate_hz"
@@ -34,6 +80,8 @@ class RateCheck:
     failure: str | None = None
     _times: np.ndarray = field(default_factory=lambda: np.empty(RATE_CHECK_STEPS + 1))
     _count: int = 0
+    _host_failure: str | None = None   # the host clock's verdict, while it stands: the rate the samples come at
+    _host_ratio: float = 1.0           # the pace that verdict names (counter s per host s)
 
     def take(self, t: np.ndarray) -> int:
         """How many of the next sample times ``t`` (s) are taken up to the end of the first window whose verdict
@@ -62,7 +110,22 @@ class RateCheck:
 
     def restart(self) -> None:
         """A new time base: judged afresh."""
-        self.settled, self.failure, self._count = False, None, 0
+        self.settled, self.failure, self._count, self._host_failure = False, None, 0, None
+
+    def host_pace(self, ratio: float) -> None:
+        """The host clock's verdict on counter time stamps: ``ratio``, their seconds per host second
+        (:class:`HostPace`). Beyond :data:`RATE_TOLERANCE` the samples come at ``ratio`` · ``rate_hz``, which no
+        window shows (each counter tick stamped at 1/``rate_hz``): the check fails until a verdict is back within it
+        and a window then passes."""
+        if RATE_TOLERANCE[0] <= ratio <= RATE_TOLERANCE[1]:
+            self._host_failure = None
+        elif self._host_failure is None or abs(ratio / self._host_ratio - 1.0) > RATE_TOLERANCE[1] - 1.0:
+            # named again only once the pace moved beyond the tolerance (the first verdict may span a change of
+            # rate): one event a rate, not one a bucket
+            self._host_ratio = ratio
+            self._host_failure = (f"samples come at {ratio * self.rate_hz:.4g} Hz by the host's clock (the IMU's "
+                                  f"counter stamps them at {self.stated_as} = {self.rate_hz:g})")
+            self.settled, self.failure = False, self._host_failure
 
     def _whole_windows(self, t: np.ndarray) -> int:
         """Judge the whole windows at the start of ``t`` at once while they keep the rate (a settled stream: one
@@ -83,7 +146,7 @@ class RateCheck:
             return
         step_s = float(np.median(steps))
         if RATE_TOLERANCE[0] <= step_s * self.rate_hz <= RATE_TOLERANCE[1]:
-            self.settled, self.failure = True, None
+            self.settled, self.failure = self._host_failure is None, self._host_failure
         else:
             self.settled = False
             self.failure = (f"samples come every {step_s * 1e3:.4g} ms ({1.0 / step_s:.4g} Hz, the median of "

@@ -17,8 +17,9 @@ velocity from the integrals, and a clipped one puts a wrong one in. So, per deco
   sample (``restarts``, with the reason in ``last_error``), in the call that brings it if not this
   one: nothing converged survives on data the estimator never saw;
 - time stamps that do not step at the stated rate (rate_check.py: the median of each window of 100 steps, for the
-  whole run) → the alignment restarts at once and every sample is dropped (``rate_mismatch``, the two periods in
-  ``last_error``) until 100 steps in a row do.
+  whole run), or a vendor's counter stamps that the host's arrival clock says run at another pace (a real-time
+  line) → the alignment restarts at once and every sample is dropped (``rate_mismatch``, the two periods or rates
+  in ``last_error``) until 100 steps in a row do, the host's clock agreeing.
 """
 from __future__ import annotations
 
@@ -86,6 +87,7 @@ class SampleGate:
     _restart_reason: str | None = None   # a cut no segment has carried yet: why the next segment restarts
     _behind: list[np.ndarray] = field(default_factory=list)   # samples in a row behind _last, in time order
     _held: np.ndarray = field(default_factory=lambda: np.empty((0, 7)))   # held by _release, in arrival order
+    _refusing: bool = False   # stopped on the rate check's failure: every sample dropped until it passes
 
     def __post_init__(self) -> None:
         self.rate = RateCheck(self.rate_hz, self.rate_stated_as)
@@ -97,24 +99,32 @@ class SampleGate:
 
         The samples of each window of the rate check are admitted or dropped by the verdict of the window before
         (the first one's admitted): a window that does not step at the stated rate restarts the alignment and drops
-        every sample until one does, at any time in the run."""
+        every sample until one does, at any time in the run. So does a verdict of the host's clock that came since
+        the last call, until a window passes after one that no longer says so."""
         segments: list[Segment] = []
+        self._follow_rate(segments)   # a verdict of the host's clock since the last call (RateCheck.host_pace)
         while len(samples):
-            refusing = self.rate.failure is not None
             taken = self.rate.take(samples[:, 0])
-            if refusing:
+            if self._refusing:
                 self.counters.rate_mismatch += taken
             else:
                 segments += self._admit(self._release(samples[:taken]))
             samples = samples[taken:]
-            if self.rate.failure is not None:
-                self.last_error = (f"{self.rate.failure}: no sample is aligned until they do (set "
-                                   f"{self.rate_stated_as} to the IMU's rate)")
-                if not refusing:
-                    self.counters.rate_mismatch += len(self._held)
-                    self._held = self._held[:0]
-                    self._stop(segments)
+            self._follow_rate(segments)
         return segments
+
+    def _follow_rate(self, segments: list[Segment]) -> None:
+        """Stop the alignment when the rate check fails (the held samples dropped), refuse samples while it does."""
+        if self.rate.failure is None:
+            self._refusing = False
+            return
+        self.last_error = (f"{self.rate.failure}: no sample is aligned until they do (set {self.rate_stated_as} to "
+                           "the IMU's rate)")
+        if not self._refusing:
+            self._refusing = True
+            self.counters.rate_mismatch += len(self._held)
+            self._held = self._held[:0]
+            self._stop(segments)
 
     def _release(self, samples: np.ndarray) -> np.ndarray:
         """The samples (held ones first) that may go to the rules now: all but a trailing run whose every step is

@@ -26,19 +26,23 @@ from ..protocol.stim300 import Stim300Decoder
 from ..protocol.vendor import VendorDecoder
 from ..protocol.xsens import XsensDecoder
 from .config import Config
+from .rate_check import HostPace
 from .sample_gate import SAMPLE_COLUMNS
 
 
 @dataclass(slots=True)
 class Decoded:
     """What one read gave: IMU samples (N, :data:`~.sample_gate.SAMPLE_COLUMNS`), aiding epochs in arrival order,
-    a line per unit that was dropped for what it held (its frame was whole: counted as ``bad_aiding``), and lines
-    for the operator (a configuration the stream contradicts)."""
+    a line per unit that was dropped for what it held (its frame was whole: counted as ``bad_aiding``), lines
+    for the operator (a configuration the stream contradicts), and ``pace``: the counter's seconds per host second
+    over the span of reads this one completed (:class:`~.rate_check.HostPace`, for the sample gate's rate check;
+    None: no span completed, or the samples carry no counter time on a real-time line)."""
 
     samples: np.ndarray
     aiding: list[messages.AidingSample] = field(default_factory=list)
     refused: list[str] = field(default_factory=list)
     notices: list[str] = field(default_factory=list)
+    pace: float | None = None
 
 
 class SerialFormat(Protocol):
@@ -76,7 +80,9 @@ class VendorFrames:
     """A vendor IMU's frames: the protocol ``decoder``'s samples, stamped from its counter on the host clock
     (``clock``, s; anchored once, :class:`~sinsalign.protocol.counter_clock.CounterClock`; ``counter_only``: from
     the counter's steps alone) and turned from the sensor's axes into the body's (``C_s_b``,
-    :func:`~sinsalign.protocol.axes.axis_map`)."""
+    :func:`~sinsalign.protocol.axes.axis_map`). Unless ``counter_only`` (a bench faster than real time), the pace of
+    the stamps on the arrival clock goes out with the samples (``Decoded.pace``): a counter stepping once a sample
+    is stamped at the configured rate whatever the IMU's."""
 
     def __init__(self, decoder: VendorDecoder, C_s_b: np.ndarray,
                  clock: Callable[[], float] = time.monotonic, counter_only: bool = False) -> None:
@@ -85,6 +91,7 @@ class VendorFrames:
         self.counter_clock = CounterClock(decoder.counter_modulus, decoder.tick_s, decoder.counter_step,
                                           counter_only)
         self._clock = clock
+        self._pace = None if counter_only else HostPace()
 
     def feed(self, data: bytes) -> Decoded:
         arrival_s = self._clock()
@@ -96,7 +103,8 @@ class VendorFrames:
         rows[:, 1:4] = got.dtheta[keep] @ self.C_s_b.T
         rows[:, 4:7] = got.dv[keep] @ self.C_s_b.T
         rows[:, 7] = got.status[keep]
-        return Decoded(rows, notices=got.notices)
+        pace = self._pace.observe(float(rows[-1, 0]), arrival_s) if self._pace is not None and len(rows) else None
+        return Decoded(rows, notices=got.notices, pace=pace)
 
     def counters(self) -> dict[str, int]:
         """The decoder's counters and its counter's sequence counters (``seq_*``)."""

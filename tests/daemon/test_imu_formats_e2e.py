@@ -6,6 +6,11 @@ every attitude record from 5 s on holds, after the same sample, the attitude the
 the same quantised increments to within 0.001° (decoding, axes and the counter's time stamps on the host clock
 change nothing); and the vendor's quantisation itself moves the attitude from the project's frame's by no more
 than 4σ of what the two roundings move it (:func:`quantisation_bound_deg`).
+
+GIVEN a KVH 1775 at 200 Hz played in real time (its counter for time, ``counter_only`` false), WHEN the daemon is
+configured for 250 Hz, THEN within 2 s of data the alignment stops on the host's clock (every window of counter
+stamps steps at 4 ms and passes): every sample after is counted as `rate_mismatch`, no attitude comes after, health
+degrades and last_error names both rates; WHEN it is configured for 200 Hz, THEN nothing is dropped or restarted.
 """
 from __future__ import annotations
 
@@ -21,7 +26,7 @@ from sinsalign.service.pipeline import build_pipeline
 from sinsalign.service.serial_formats import serial_format_for
 from sinsalign.tools.sim.scenarios import get_scenario
 from sinsalign.tools.virtual_imu import FramePlayer, PtyPair, imu_encoder
-from support.daemon_harness import RunningDaemon, samples
+from support.daemon_harness import RunningDaemon, samples, swing_samples, wait_until
 from support.vendor_formats import VENDOR_IMUS
 
 SECONDS = 40.0
@@ -114,3 +119,48 @@ def test_each_imu_format_gives_the_attitude_of_its_increments(tmp_path, native, 
     bound = quantisation_bound_deg(name, t_s)
     assert errors.max() < bound[0] and errors[-1] < bound[-1]
     assert [r["phase"] for r in records[-1000:]] == [r["phase"] for r in native_records[-1000:]]
+
+
+REAL_TIME_S = 5.0
+"""Seconds of a KVH played in real time: three verdicts of the host's clock after the first at 1.5 s."""
+
+
+def real_time_kvh(tmp_path, pty_pair: PtyPair, rate_hz: float) -> tuple[RunningDaemon, int]:
+    """The daemon, configured for a KVH 1775 at ``rate_hz``, reading one at 200 Hz played in real time; stopped once
+    its last status shows every frame read. The frames written."""
+    run = RunningDaemon(tmp_path, pty_pair.port_name, imu={"format": "kvh1775", "rate_hz": rate_hz},
+                        daemon={"record_path": ""})
+    try:
+        player = FramePlayer(pty_pair.master_fd, speed=1.0, encode=imu_encoder(run.config.imu))
+        player.play(*swing_samples(REAL_TIME_S, 5))
+        assert wait_until(lambda: run.subscriber.status
+                          and run.subscriber.status[-1]["counters"]["frames"] == player.frames_written, 3.0)
+    finally:
+        run.stop()
+    return run, player.frames_written
+
+
+def test_a_kvh_at_another_rate_than_configured_stops_the_alignment_on_the_hosts_clock(tmp_path, pty_pair):
+    run, written = real_time_kvh(tmp_path, pty_pair, 250.0)
+    counters = run.daemon.all_counters()
+    assert counters["restarts"] == 1 and counters["samples_used"] <= 2.0 * RATE_HZ   # stopped within 2 s of data
+    assert counters["rate_mismatch"] == written - counters["samples_used"] and counters["seq_gaps"] == 0
+    ingest = run.daemon.ingest   # no attitude after the stop: none beyond 2 s of data, 1.6 s of the counter's time
+    assert ingest.t_last - ingest.t_first <= 2.0 * RATE_HZ / 250.0
+    assert run.subscriber.attitude and max(r["t"] for r in run.subscriber.attitude) <= ingest.t_last
+    status = run.subscriber.status[-1]
+    text = status["last_error"]
+    assert text.startswith("samples come at ") and text.endswith(
+        " Hz by the host's clock (the IMU's counter stamps them at imu.rate_hz = 250): no sample is aligned until "
+        "they do (set imu.rate_hz to the IMU's rate)")
+    assert float(text.split()[3]) == pytest.approx(RATE_HZ, rel=0.05)
+    assert any(s["health"] == "degraded" for s in run.subscriber.status)
+
+
+def test_a_kvh_at_its_configured_rate_in_real_time_raises_no_alarm(tmp_path, pty_pair):
+    run, written = real_time_kvh(tmp_path, pty_pair, RATE_HZ)
+    counters = run.daemon.all_counters()
+    assert counters["samples_used"] == written == counters["frames"]
+    assert counters["rate_mismatch"] == counters["restarts"] == counters["seq_gaps"] == 0
+    assert run.daemon.ingest.gate.rate.settled
+    assert not any((s["last_error"] or "").startswith("samples come") for s in run.subscriber.status)
