@@ -37,6 +37,7 @@ from .align.sensor_model import (
     inertial_alignment_sigmas,
 )
 from .align.solvers import _GAIN_POLICY, CentredWahba, RecursiveK
+from .align.turns import TURN_WINDOW_S, TURNED, TurnWatch
 from .config import Config, ConfigError
 from .modes import MODES
 from .modes.fixed_base import FixedBase
@@ -118,6 +119,7 @@ class Mode(Protocol):
     coarse_kind: str
     checks_translation: bool
     checks_noise: bool
+    watches_turns: bool
     gyro_rate: bool
 
     def make_coarse(self) -> InertialCoarseAlignment: ...
@@ -220,6 +222,10 @@ class AlignmentPipeline:
         # the meter's α history lives in these estimators' b0 axes (the figures found so far stay in sigma_grade)
         self.noise = (NoiseMeter(self.config.alignment.obs_interval_s, self.site.lat, self.site.gravity)
                       if self.checks_noise else None)
+        # turns of the base, in these estimators' b0 axes: at each, the fine stage is dropped until it is steady
+        self.turns = (TurnWatch(round(TURN_WINDOW_S / (self.block_samples * self.sample_period_s)))
+                      if self.mode.watches_turns and self.fine is not None and self.initial_C_b_n is None else None)
+        self._turn_events: list[tuple[float, int]] = []   # (the control step's end time s, event), in time order
         self._blocks = fixed_base_blocks(self)
 
     @property
@@ -386,21 +392,24 @@ class AlignmentPipeline:
         counts = self._epoch_counts(t)
         epochs = np.flatnonzero(stepped_up(counts, self._epoch_count))
         self._epoch_count = int(counts[-1])
+        ends_array = np.arange(M - 1, len(t), M, dtype=np.intp)
+        turn_blocks = self._watch_turns(t[ends_array], q_b_b0[ends_array])
         solver = self.coarse.solver
         # per block: the observations to fold by its end, and its epochs with those to fold by each (one search each
         # for the whole chunk, not per block)
-        ends_array = np.arange(M - 1, len(t), M, dtype=np.intp)
         fold_end_array = np.searchsorted(due, ends_array, side="right").astype(np.intp)
         fold_epoch = np.searchsorted(due, epochs, side="right").tolist()
         # block b: its epochs epochs_by[b] to epochs_by[b + 1]
         epochs_by = [0, *np.searchsorted(epochs, ends_array, side="right").tolist()]
         blocks = self._blocks
+        chunk = (ends_array, fold_end_array, t, elapsed, alpha, dK, trace_R, np.ascontiguousarray(observed_s),
+                 np.ascontiguousarray(observed_alpha))
         if blocks is not None:   # the compiled loop's arrays as it reads them
-            blocks.chunk(ends_array, fold_end_array, t, elapsed, alpha, dK, trace_R,
-                         np.ascontiguousarray(observed_s), np.ascontiguousarray(observed_alpha))
-            # each run stops at the next block with epochs (their records are Python's) or a deferred last block
-            limits = np.append(np.searchsorted(ends_array, epochs),
-                               len(ends_array) - 1 if self._defer_control else len(ends_array)).tolist()
+            blocks.chunk(*chunk)
+            # each run stops at the next block with epochs (their records are Python's), a turn's (its control step
+            # changes the stages) or a deferred last block
+            limits = np.union1d(np.searchsorted(ends_array, epochs), turn_blocks)
+            limits = np.append(limits, len(ends_array) - 1 if self._defer_control else len(ends_array)).tolist()
         ends, fold_end, folded, b = ends_array.tolist(), fold_end_array.tolist(), 0, 0
         while b < len(ends):
             measured = folded   # the block's observations, whether an epoch's record folded some of them already
@@ -444,13 +453,18 @@ class AlignmentPipeline:
                 if end + 1 < len(t):
                     self._process_blocks(samples[end + 1:], records)
                 return
+            if self._blocks is not blocks:   # a turn changed the fine stage: its compiled loop takes the chunk on
+                blocks = self._blocks
+                if blocks is not None:
+                    blocks.chunk(*chunk)
             b += 1
 
     def _blocks_ready(self) -> bool:
-        """Whether the compiled loop can take the next blocks: no stored-data passes under way, and the base not
-        known to move."""
+        """Whether the compiled loop can take the next blocks: no stored-data passes under way, the base not known
+        to move, and no hand-over after a turn due (the mode seeds those loops with what the turn left)."""
         fine = self.fine
-        return ((fine is None or (fine.passes is None and (fine.passes_done or not fine.buffer.full)))
+        return ((fine is None or (fine.passes is None and (fine.passes_done or not fine.buffer.full)
+                                  and (fine.active or self.turns is None or not self.turns.turned)))
                 and (self.motion is None or self.motion.episode is None))
 
     def _measure_noise(self, elapsed_s: np.ndarray, alpha: np.ndarray) -> None:
@@ -522,9 +536,32 @@ class AlignmentPipeline:
             fresh = aid_epoch > self._step_epoch
             self._step_epoch = np.where(fresh, aid_epoch, self._step_epoch)
         self.mode.step(t_end, elapsed_s, q_b_b0, dalpha, dt_s, aid, fresh)
+        while self._turn_events and self._turn_events[0][0] <= t_end:
+            self._turn(t_end, self._turn_events.pop(0)[1])
         if self.motion is not None and elapsed_s >= self._next_check_s:
             self._next_check_s = elapsed_s + self.config.disturbance.check_interval_s
             self._check_motion(t_end, elapsed_s, alpha)
+
+    def _watch_turns(self, t_end: np.ndarray, q_b_b0: np.ndarray) -> np.ndarray:
+        """The turn watch over a chunk's control steps (their end times (K,) s and body attitudes (K, 4)): its
+        events wait for their control steps; the indices of those steps (the compiled loop leaves them to Python)."""
+        if self.turns is None:
+            return np.zeros(0, np.intp)
+        events = self.turns.scan(t_end, q_b_b0)
+        self._turn_events += [(float(t_end[k]), event) for k, event in events]
+        return np.array([k for k, _ in events], np.intp)
+
+    def _turn(self, t_end: float, event: int) -> None:
+        """A turn (the compass loops dropped: they hold the biases as they were in n) or a base steady again after
+        one (fresh loops, handed over from the coarse stage as at the start, their stored data all after it)."""
+        if event == TURNED:
+            self.fine = None
+            self.last_disturbance = (f"base turning at t = {t_end:.2f} s: the compass loops wait until it is steady, "
+                                     "the coarse stage carries the attitude")
+        else:
+            self.fine = self.mode.make_fine()
+            self.last_disturbance = f"base steady again at t = {t_end:.2f} s: the compass loops start afresh"
+        self._blocks = fixed_base_blocks(self)
 
     def _check_motion(self, t_end: float, elapsed_s: float, alpha: np.ndarray) -> None:
         """Watch for a base that translates (:class:`MotionMonitor`) under the coarse estimate, which runs through

@@ -4,7 +4,8 @@ Observation source: the fixed site (gravity turning with the Earth). Solver: ``a
 the one "auto" picks for the datasheet). σ: the coarse stage's model, with the noise the data show. Fine stage: the
 compass loops with their gain schedule and stored-data passes, from the step at which the coarse heading σ (its
 noise part) is within ``fine.compass.handover_sigma_deg`` (or at ``fine.compass.handover_time_s``). The output
-takes level and heading each from whichever stage claims the smaller σ.
+takes level and heading each from whichever stage claims the smaller σ. A turn of the base drops the loops until it
+is steady again (``watches_turns``): the coarse stage alone carries the attitude through it.
 """
 from __future__ import annotations
 
@@ -38,6 +39,9 @@ class FixedBase:
     coarse_kind = ""
     checks_translation = True
     checks_noise = True
+    watches_turns = True
+    """The compass loops hold the biases as they were in n: on a turn the pipeline drops them until the base is
+    steady (service/align/turns.py), the coarse stage carrying the attitude."""
     gyro_rate = False
 
     def __init__(self, pipeline: AlignmentPipeline) -> None:
@@ -83,8 +87,15 @@ class FixedBase:
         p.fine.feed(dalpha, dt_s)
         if not p.fine.active and self._handover_due(elapsed_s):
             solution = p.coarse.solution_at(t_end, q_b_b0)
-            noise = self._noise_part(solution.heading_sigma_deg, solution.level_sigma_deg)
-            p.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), *noise,
+            tilt, heading = self._noise_part(solution.heading_sigma_deg, solution.level_sigma_deg)
+            if p.turns is not None and p.turns.turned:
+                # the coarse fit spans attitudes before and after a turn, which average the biases; the loops settle
+                # where this attitude's biases put them: the two differ by up to twice the bias limit, which the
+                # loops' start must hold (seeded with the noise alone, they were 3σ off 8 s after an index)
+                grade, site = p.coarse.grade, p.coarse.source.site
+                bias_heading, bias_level = bias_limit_rad(grade, site.lat, site.gravity)
+                tilt, heading = float(np.hypot(tilt, 2.0 * bias_level)), float(np.hypot(heading, 2.0 * bias_heading))
+            p.fine.start(dcm_from_quat(solution.q_b_n), dcm_from_quat(q_b_b0), tilt, heading,
                          t_loop_s=p.config.fine.compass.handover_schedule_s)
 
     def _handover_due(self, elapsed_s: float) -> bool:
@@ -138,7 +149,8 @@ class FixedBase:
         p = self.p
         threshold = p.config.alignment.converged_heading_sigma_deg
         if p.fine is None or not p.fine.active:
-            return coarse_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, threshold, p.fine is not None)
+            # loops dropped on a turn come back: the coarse stage's answer is not the end of the alignment
+            return coarse_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, threshold, p.with_fine)
         if p.initial_C_b_n is not None:
             # a compass-alone start from a given attitude (evaluation) is the loops' alone
             sigma = p.fine.sigma

@@ -30,6 +30,7 @@ class KalmanMode:
     coarse_kind = ""
     checks_translation = False
     checks_noise = False
+    watches_turns = False   # the filter holds the biases in body axes: a turn makes them observable, not wrong
     gyro_rate = False
     sigma_margin = 1.25
     """The reported σ is the filter's times this. The filters are Gaussian-calibrated (seed 002, 20 seeds from

@@ -25,22 +25,24 @@ class Sinusoid:
 
 @dataclass(frozen=True, slots=True)
 class AngleProfile:
-    """One Euler angle (rad): a centre, optional turntable steps, optional sinusoids.
+    """One Euler angle (rad): a centre, optional turntable steps, optional sinusoids, an optional constant rate.
 
     ``steps`` are (t_start_s, new_centre) pairs in time order; each move takes
-    ``transition_s`` with a raised-cosine profile (rate continuous at its ends).
+    ``transition_s`` with a raised-cosine profile (rate continuous at its ends). ``rate`` (rad/s) turns the
+    centre on from t = 0 (a table rotating continuously).
     """
 
     centre: float = 0.0
     sinusoids: tuple[Sinusoid, ...] = ()
     steps: tuple[tuple[float, float], ...] = ()
     transition_s: float = 10.0
+    rate: float = 0.0
 
     def value_and_rate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Angle (rad) and its time derivative (rad/s) at times t (s)."""
         t = np.asarray(t, dtype=float)
-        value = np.full_like(t, self.centre)
-        rate = np.zeros_like(t)
+        value = self.centre + self.rate * t
+        rate = np.full_like(t, self.rate)
         previous = self.centre
         for t_start, target in self.steps:
             x = np.clip((t - t_start) / self.transition_s, 0.0, 1.0)

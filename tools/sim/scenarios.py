@@ -232,6 +232,20 @@ def _driven(base: Scenario) -> Scenario:
 
 
 SCENARIOS["seed000-swing-driven"] = _driven(SCENARIOS["seed000-swing"])
+
+
+def turntable_index(positions: int, dwell_s: float = 300.0, turn_s: float = 20.0) -> AngularMotion:
+    """A table indexed 90° about the vertical between ``positions`` positions, ``dwell_s`` at each (the turn at the
+    end of each dwell takes ``turn_s``), the IMU pitched 5° on it."""
+    steps = tuple((dwell_s * k, 90.0 * DEG * k) for k in range(1, positions))
+    return AngularMotion(AngleProfile(0.0, steps=steps, transition_s=turn_s), AngleProfile(5.0 * DEG), AngleProfile())
+
+
+SCENARIOS["turntable-index"] = replace(
+    SCENARIOS["turntable-positions"], name="turntable-index", motion=turntable_index(4), duration_s=1200.0,
+    description="turntable indexed 90° at a time, 300 s at each of 4 positions (20-s turns), pitch 5°: L=45°, "
+                "navigation-grade IMU (turntable-positions' IMU, bias signs drawn per seed and axis)",
+    eval_windows_s=((1.0, 300.0), (900.0, 1200.0)), random_bias_signs=True)
 SCENARIOS.update({s.name: s for s in (_seed003(20), _seed003(60), _seed003(80))})
 ODO_GNSS_DURATION_S = 150.0
 SCENARIOS["seed003-odo-gnss"] = replace(
