@@ -405,7 +405,9 @@ def build_parser() -> argparse.ArgumentParser:
                    "seed004 for the in-flight GNSS table (VIF vs PIF, lever arm compensated or ignored, and VIF "
                    "through glitches and a 20-s outage; heading at 10/60/300 s, σ honesty), or seed004-rates for "
                    "the same flight with 50/10/5/1-Hz receivers (120 s: accuracy, σ honesty, gaps), or "
-                   "seed002-rates for the transfer alignment with the master INS at 10/5/2/1 Hz")
+                   "seed002-rates for the transfer alignment with the master INS at 10/5/2/1 Hz, or honesty for "
+                   "the honesty sweep (every mode on its motion × navigation/tactical/MEMS IMU × datasheet stated "
+                   "or understated 10×: converged records beyond 3σ and records within 2σ per cell)")
     p.add_argument("--seeds", type=POSITIVE_INT, default=20, help="number of seeds (default 20)")
     p.add_argument("--first-seed", type=SEED, default=0, help="the first seed (default 0; the others follow it)")
     p.add_argument("--seed-sets", type=POSITIVE_INT, default=1, metavar="K",

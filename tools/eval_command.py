@@ -16,7 +16,8 @@ AIDED_TABLES = {"seed003": ("evaluate_aided.seed003_table", "evaluate_aided.plot
                 "seed004-rates": ("evaluate_gnss.rate_table", "evaluate_gnss.plot_rates"),
                 "seed002-rates": ("evaluate_transfer.rate_table", "evaluate_gnss.plot_rates"),
                 "transfer-mems": ("evaluate_transfer.handover_table", "evaluate_transfer.plot_handover"),
-                "seed003-odo-gnss": ("evaluate_odo_gnss.odo_gnss_table", "evaluate_odo_gnss.plot_odo_gnss")}
+                "seed003-odo-gnss": ("evaluate_odo_gnss.odo_gnss_table", "evaluate_odo_gnss.plot_odo_gnss"),
+                "honesty": ("honesty.honesty_table", "honesty.plot_honesty")}
 """``eval`` names that run an aided mode's own table of fixed variants: its table and plot (module.function in
 sinsalign.tools)."""
 
