@@ -20,6 +20,7 @@ from sinsalign.protocol.kvh import KvhDecoder, KvhEncoder
 from sinsalign.service.rate_check import RATE_CHECK_STEPS, RATE_TOLERANCE, HostPace
 from sinsalign.service.sample_gate import SampleGate, Segment
 from sinsalign.service.serial_formats import VendorFrames
+from support.sample_streams import stream
 
 RATE_HZ = 200.0   # imu.rate_hz: the counter's ticks are stamped 5 ms apart
 WINDOW = RATE_CHECK_STEPS + 1
@@ -60,15 +61,6 @@ def paces(p: np.ndarray, **kwargs) -> list[tuple[float, float]]:
         if ratio is not None:
             out.append((arrival, ratio))
     return out
-
-
-def stream(times: np.ndarray) -> np.ndarray:
-    """Samples (N, 9) at ``times`` (s), small increments, status 0, none saturated."""
-    rows = np.zeros((len(times), 9))
-    rows[:, 0] = times
-    rows[:, 1] = 1e-6
-    rows[:, 6] = 0.05
-    return rows
 
 
 def through_gate(gate: SampleGate, p: np.ndarray) -> tuple[list[tuple[float, list[Segment]]], int]:

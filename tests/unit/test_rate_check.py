@@ -18,17 +18,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sinsalign.service.rate_check import RATE_CHECK_STEPS
 from sinsalign.service.sample_gate import SampleGate, Segment
+from support.sample_streams import stream
 
 WINDOW = RATE_CHECK_STEPS + 1   # samples in one judgement
-
-
-def stream(times: np.ndarray) -> np.ndarray:
-    """Samples (N, 9) at ``times`` (s), small increments, status 0, none saturated."""
-    rows = np.zeros((len(times), 9))
-    rows[:, 0] = times
-    rows[:, 1] = 1e-6
-    rows[:, 6] = 0.05
-    return rows
 
 
 def admitted(gate: SampleGate, samples: np.ndarray, split: int | None = None) -> list[Segment]:
