@@ -29,6 +29,11 @@ PACE_SPAN_S = 0.75
 """Host seconds of reads in one bucket of :class:`HostPace`: some 40 reads of a loop that waits up to 20 ms for
 data, the least lag among them within a few ms of the line's own; two buckets apart (the first verdict at 1.5 s)
 that is ~1 % of pace, well within :data:`RATE_TOLERANCE`."""
+AHEAD_LIMIT_S = 0.05
+"""A read whose lead is this far (s) above the last closed bucket's least lag cannot be a late read (lag only takes
+lead away): the counter runs ahead of the host's clock, and the pace so far is judged at once. An IMU that doubled
+its rate was otherwise aligned at half its time scale until the next bucket closed, up to 1.5 s: `converged` 3σ
+off; at twice the rate the counter is 50 ms ahead 50 ms after the change."""
 
 
 @dataclass(slots=True)
@@ -47,23 +52,35 @@ class HostPace:
     span_s: float = PACE_SPAN_S
     _start_s: float | None = None   # the open bucket's first arrival (host s); None: no read yet
     _lead_s: float = 0.0            # the open bucket's largest lead (s)
-    _closed: tuple[float, float] | None = None   # the last closed bucket's first arrival and largest lead (s)
+    _lead_at_s: float = 0.0         # the arrival of that read (host s)
+    _sound: bool = True             # the last verdict was within the tolerance: a read ahead may tell at once
+    _closed: tuple[float, float, float] | None = None   # the last closed bucket's first arrival, largest lead, its
+    # arrival (s)
 
     def observe(self, t: float, arrival_s: float) -> float | None:
         """A read whose newest sample has time ``t`` (s, the counter's) arrived at ``arrival_s`` (s, host) → the
-        counter's seconds per host second from the last closed bucket to the one this read closes; None while it
-        closes none, or the first."""
+        counter's seconds per host second from the last closed bucket to the one this read closes, or to this read
+        if it is :data:`AHEAD_LIMIT_S` ahead of that bucket's least lag while the last verdict was sound (a rough
+        figure at once, which the buckets' then refine); None while it does neither, or the first."""
         lead = t - arrival_s
         if self._start_s is not None and arrival_s - self._start_s < self.span_s:
-            self._lead_s = max(self._lead_s, lead)
+            if lead > self._lead_s:
+                self._lead_s, self._lead_at_s = lead, arrival_s
+            if self._closed is not None and lead - self._closed[1] > AHEAD_LIMIT_S and self._sound:
+                _, lead_s, lead_at_s = self._closed   # ahead of any lag: the pace since that least lag, now
+                return self._verdict(1.0 + (lead - lead_s) / (arrival_s - lead_at_s))
             return None
         pace = None
         if self._start_s is not None:
             if self._closed is not None:
-                start_s, lead_s = self._closed
-                pace = 1.0 + (self._lead_s - lead_s) / (self._start_s - start_s)
-            self._closed = (self._start_s, self._lead_s)
-        self._start_s, self._lead_s = arrival_s, lead
+                start_s, lead_s, _ = self._closed
+                pace = self._verdict(1.0 + (self._lead_s - lead_s) / (self._start_s - start_s))
+            self._closed = (self._start_s, self._lead_s, self._lead_at_s)
+        self._start_s, self._lead_s, self._lead_at_s = arrival_s, lead, arrival_s
+        return pace
+
+    def _verdict(self, pace: float) -> float:
+        self._sound = RATE_TOLERANCE[0] <= pace <= RATE_TOLERANCE[1]
         return pace
 
 

@@ -90,13 +90,17 @@ def test_a_rate_off_the_configured_one_is_out_of_tolerance_within_2_s(true_hz):
     first_arrival, first = verdicts[0]
     assert first_arrival < 2.0 and not RATE_TOLERANCE[0] <= first <= RATE_TOLERANCE[1]
     ratios = np.array([ratio for _, ratio in verdicts])
-    np.testing.assert_allclose(ratios, true_hz / RATE_HZ, rtol=0.02)
+    # every verdict on the true side of the tolerance; a bucket's within 2 % (a read ahead of the least lag gives a
+    # rough one at once, which includes that read's own lag)
+    assert np.all(ratios > RATE_TOLERANCE[1]) if true_hz > RATE_HZ else np.all(ratios < RATE_TOLERANCE[0])
+    assert np.median(ratios) == pytest.approx(true_hz / RATE_HZ, rel=0.02)
 
 
 def test_a_rate_that_doubles_late_is_told_within_2_s_of_the_change():
     verdicts = paces(produced(RATE_HZ, 14.0, change=(10.0, 2 * RATE_HZ)))
     out = [arrival for arrival, ratio in verdicts if not RATE_TOLERANCE[0] <= ratio <= RATE_TOLERANCE[1]]
-    assert out and 10.0 < out[0] < 12.0
+    # a read ahead of the least lag by 50 ms tells at once (the buckets alone took up to 1.5 s)
+    assert out and 10.0 < out[0] < 10.2
     assert all(abs(ratio - 1.0) < 0.01 for arrival, ratio in verdicts if arrival < 10.0)
 
 
