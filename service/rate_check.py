@@ -31,9 +31,10 @@ data, the least lag among them within a few ms of the line's own; two buckets ap
 that is ~1 % of pace, well within :data:`RATE_TOLERANCE`."""
 AHEAD_LIMIT_S = 0.05
 """A read whose lead is this far (s) above the last closed bucket's least lag cannot be a late read (lag only takes
-lead away): the counter runs ahead of the host's clock, and the pace so far is judged at once. An IMU that doubled
-its rate was otherwise aligned at half its time scale until the next bucket closed, up to 1.5 s: `converged` 3σ
-off; at twice the rate the counter is 50 ms ahead 50 ms after the change."""
+lead away): the counter runs ahead of the host's clock, and the pace beyond this lead is judged at once. An IMU that
+doubled its rate was otherwise aligned at half its time scale until the next bucket closed, up to 1.5 s:
+`converged` 3σ off; at twice the rate the counter is 50 ms ahead 50 ms after the change, and its pace beyond that
+leaves the tolerance within another 0.1 s."""
 
 
 @dataclass(slots=True)
@@ -67,8 +68,10 @@ class HostPace:
             if lead > self._lead_s:
                 self._lead_s, self._lead_at_s = lead, arrival_s
             if self._closed is not None and lead - self._closed[1] > AHEAD_LIMIT_S and self._sound:
-                _, lead_s, lead_at_s = self._closed   # ahead of any lag: the pace since that least lag, now
-                return self._verdict(1.0 + (lead - lead_s) / (arrival_s - lead_at_s))
+                # ahead of any lag: the pace since that least lag, now, less the limit (a reader that fell behind
+                # for a whole bucket and caught up is that far ahead once, and no faster)
+                _, lead_s, lead_at_s = self._closed
+                return self._verdict(1.0 + (lead - lead_s - AHEAD_LIMIT_S) / (arrival_s - lead_at_s))
             return None
         pace = None
         if self._start_s is not None:
