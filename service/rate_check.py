@@ -25,10 +25,11 @@ RATE_CHECK_STEPS = 100
 """Steps in one judgement: 0.5 s at 200 Hz, 20 ms at 5 kHz."""
 RATE_TOLERANCE = (0.95, 1.05)
 """The median step over the stated period that passes: an IMU's oscillator within 5 % of its nominal rate."""
-PACE_SPAN_S = 0.75
-"""Host seconds of reads in one bucket of :class:`HostPace`: some 40 reads of a loop that waits up to 20 ms for
-data, the least lag among them within a few ms of the line's own; two buckets apart (the first verdict at 1.5 s)
-that is ~1 % of pace, well within :data:`RATE_TOLERANCE`."""
+PACE_SPAN_S = 0.5
+"""Host seconds of reads in one bucket of :class:`HostPace`: some 25 reads of a loop that waits up to 20 ms for
+data, the least lag among them within a few ms of the line's own; two buckets apart that is ~1 % of pace, well
+within :data:`RATE_TOLERANCE`. A pace beyond it counts once the next bucket's agrees (the first at 1.5 s): a reader
+that fell 30 ms behind for a whole bucket, or caught up after one, moves one bucket's least lag, not two."""
 AHEAD_LIMIT_S = 0.05
 """A read whose lead is this far (s) above the last closed bucket's least lag cannot be a late read (lag only takes
 lead away): the counter runs ahead of the host's clock, and the pace beyond this lead is judged at once. An IMU that
@@ -55,6 +56,7 @@ class HostPace:
     _lead_s: float = 0.0            # the open bucket's largest lead (s)
     _lead_at_s: float = 0.0         # the arrival of that read (host s)
     _sound: bool = True             # the last verdict was within the tolerance: a read ahead may tell at once
+    _beyond: int = 0                # the last bucket's pace beyond the tolerance: +1 above, −1 below, 0 within
     _closed: tuple[float, float, float] | None = None   # the last closed bucket's first arrival, largest lead, its
     # arrival (s)
 
@@ -77,10 +79,18 @@ class HostPace:
         if self._start_s is not None:
             if self._closed is not None:
                 start_s, lead_s, _ = self._closed
-                pace = self._verdict(1.0 + (self._lead_s - lead_s) / (self._start_s - start_s))
+                pace = self._confirmed(1.0 + (self._lead_s - lead_s) / (self._start_s - start_s))
             self._closed = (self._start_s, self._lead_s, self._lead_at_s)
         self._start_s, self._lead_s, self._lead_at_s = arrival_s, lead, arrival_s
         return pace
+
+    def _confirmed(self, pace: float) -> float | None:
+        """A bucket's pace, if within the tolerance or beyond it on the same side as the bucket's before; None for
+        the first beyond it."""
+        beyond = 0 if RATE_TOLERANCE[0] <= pace <= RATE_TOLERANCE[1] else (1 if pace > 1.0 else -1)
+        confirmed = beyond == 0 or beyond == self._beyond
+        self._beyond = beyond
+        return self._verdict(pace) if confirmed else None
 
     def _verdict(self, pace: float) -> float:
         self._sound = RATE_TOLERANCE[0] <= pace <= RATE_TOLERANCE[1]

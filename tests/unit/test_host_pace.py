@@ -36,17 +36,20 @@ def produced(true_hz: float, seconds: float, change: tuple[float, float] | None 
     return np.concatenate((before, before[-1] + np.arange(1, int((seconds - at_s) * new_hz) + 1) / new_hz))
 
 
-def reads(p: np.ndarray, seed: int = 3, silence: tuple[float, float] | None = None) -> Iterator[tuple[int, float]]:
+def reads(p: np.ndarray, seed: int = 3, silence: tuple[float, float] | None = None,
+          behind: tuple[float, float, float] | None = None) -> Iterator[tuple[int, float]]:
     """A reader of a real-time line: every 5–20 ms, the samples produced (host times ``p``, s) up to 0–30 ms before
     the read; each read that brings samples as (one past its newest sample's index, arrival s). ``silence``: (from,
-    to) host s in which nothing is read (the samples produced then come with the read after)."""
+    to) host s in which nothing is read (the samples produced then come with the read after); ``behind``: (from, to,
+    s) host s in which the reader lags that much more (a busy host), catching up after."""
     rng = np.random.default_rng(seed)
     arrival, taken = 0.0, 0
     while taken < len(p):
         arrival += rng.uniform(0.005, 0.020)
         if silence is not None and silence[0] <= arrival < silence[1]:
             continue
-        newest = int(np.searchsorted(p, arrival - rng.uniform(0.0, 0.030), side="right"))
+        lag = rng.uniform(0.0, 0.030) + (behind[2] if behind is not None and behind[0] <= arrival < behind[1] else 0)
+        newest = int(np.searchsorted(p, arrival - lag, side="right"))
         if newest > taken:
             taken = newest
             yield newest, arrival
@@ -79,19 +82,28 @@ def through_gate(gate: SampleGate, p: np.ndarray) -> tuple[list[tuple[float, lis
 
 def test_a_sound_line_keeps_within_1_per_cent_of_the_counters_pace_across_a_silence():
     verdicts = paces(produced(RATE_HZ, 20.0), silence=(8.0, 11.0))
-    assert 1.5 <= verdicts[0][0] < 1.6   # two buckets of 0.75 s
+    assert 1.0 <= verdicts[0][0] < 1.1   # two buckets of 0.5 s
     ratios = np.array([ratio for _, ratio in verdicts])
     assert len(ratios) >= 20 and np.abs(ratios - 1.0).max() < 0.01
+
+
+@pytest.mark.parametrize("behind_s", [(4.0, 5.0, 0.04), (4.0, 6.5, 0.04), (4.2, 4.9, 0.045)])
+def test_a_reader_that_falls_behind_for_a_while_and_catches_up_is_no_rate(behind_s):
+    """A busy host: every read 40-45 ms later than the line's own lag for 0.7-2.5 s, then on time again. The least
+    lag of one bucket moves (a pace of 1 ± 0.08 between it and its neighbour), never two in a row, and a read that
+    catches up is no further ahead than the limit."""
+    verdicts = paces(produced(RATE_HZ, 12.0), behind=behind_s)
+    assert all(RATE_TOLERANCE[0] <= ratio <= RATE_TOLERANCE[1] for _, ratio in verdicts)
 
 
 @pytest.mark.parametrize("true_hz", [400.0, 100.0, 250.0, 160.0])
 def test_a_rate_off_the_configured_one_is_out_of_tolerance_within_2_s(true_hz):
     verdicts = paces(produced(true_hz, 6.0))
-    first_arrival, first = verdicts[0]
-    assert first_arrival < 2.0 and not RATE_TOLERANCE[0] <= first <= RATE_TOLERANCE[1]
-    ratios = np.array([ratio for _, ratio in verdicts])
-    # every verdict on the true side of the tolerance; a bucket's within 2 % (a read ahead of the least lag gives a
-    # rough one at once, which includes that read's own lag)
+    out = [arrival for arrival, ratio in verdicts if not RATE_TOLERANCE[0] <= ratio <= RATE_TOLERANCE[1]]
+    assert out and out[0] < 2.0   # a bucket's confirmed by the next (1.5 s), or a read ahead at once
+    ratios = np.array([ratio for arrival, ratio in verdicts if arrival >= out[0]])
+    # from the first beyond it, every verdict on the true side of the tolerance; a bucket's within 2 % (a read ahead
+    # of the least lag gives a rough one at once, which includes that read's own lag)
     assert np.all(ratios > RATE_TOLERANCE[1]) if true_hz > RATE_HZ else np.all(ratios < RATE_TOLERANCE[0])
     assert np.median(ratios) == pytest.approx(true_hz / RATE_HZ, rel=0.02)
 
@@ -197,4 +209,4 @@ def test_a_vendors_format_puts_out_the_pace_of_its_stamps_on_the_host_clock(coun
     if expected is None:
         assert out == []
     else:
-        assert len(out) >= 2 and np.allclose(out, expected, rtol=0.01)
+        assert len(out) >= 2 and np.allclose(out, expected, rtol=0.02)   # 0.5-s buckets of jittered reads
