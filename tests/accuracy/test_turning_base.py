@@ -11,7 +11,7 @@ stayed put, seeded with the noise and twice the bias limit (the coarse fit avera
 loops settle on this one's).
 
 A table that rotates continuously is not yet honest: the coarse stage's σ does not hold what a rotating
-accelerometer bias does to the Earth-rate signal (0.2°/s: 0.2° off at σ 0.06°, strict xfail below).
+accelerometer bias does to the Earth-rate signal (0.2°/s: 1.3° off under σ 0.08°; strict xfail below).
 """
 from dataclasses import replace
 
