@@ -38,16 +38,6 @@ TURNED, STEADY = 1, 2
 """Events of :meth:`TurnWatch.scan`: the body turned; it has been steady again for :data:`TURN_WINDOW_S`."""
 
 
-def _dcm_of_quats(q: np.ndarray) -> np.ndarray:
-    """DCMs (K, 3, 3) of quaternions (K, 4) [w, x, y, z], not necessarily unit (each is normalised)."""
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
-    w, x, y, z = q.T
-    return np.stack((np.stack((1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)), axis=-1),
-                     np.stack((2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)), axis=-1),
-                     np.stack((2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)), axis=-1)),
-                    axis=1)
-
-
 class TurnWatch:
     """Watches the control steps' body attitudes for turns (module docstring); ``window_steps`` control steps make
     :data:`TURN_WINDOW_S`."""
@@ -59,7 +49,7 @@ class TurnWatch:
         self._sums = np.zeros((0, 4))          # the last window_steps running sums of the sign-continued quaternions
         self._seen = 0                         # control steps taken
         self._q_last: np.ndarray | None = None   # the last quaternion taken (the sign continues from it)
-        self._anchor: np.ndarray | None = None   # C_b^{b0} (3, 3) of the mean at the last event or refresh
+        self._anchor: np.ndarray | None = None   # the unit quaternion of the mean at the last event or refresh
         self._since_s = 0.0                    # when the state last changed or the anchor moved (s)
 
     def scan(self, t_s: np.ndarray, q_b_b0: np.ndarray) -> list[tuple[int, int]]:
@@ -96,8 +86,9 @@ class TurnWatch:
         return events
 
     def _window_means(self, q: np.ndarray) -> np.ndarray:
-        """The mean attitude (K, 3, 3) over the window ending at each step: the normalised mean of the quaternions,
-        their signs continued from step to step (q and −q are one attitude), from running sums kept in order."""
+        """The mean attitude (K, 4: unit quaternions) over the window ending at each step: the normalised mean of
+        the quaternions, their signs continued from step to step (q and −q are one attitude), from running sums
+        kept in order."""
         signs = np.sign(np.einsum("ij,ij->i", q[1:], q[:-1]))
         first = 1.0 if self._q_last is None or float(q[0] @ self._q_last) >= 0.0 else -1.0
         signs = np.cumprod(np.concatenate(([first], np.where(signs == 0.0, 1.0, signs))))
@@ -111,9 +102,9 @@ class TurnWatch:
         history = np.concatenate((np.zeros((n - len(self._sums), 4)), self._sums, sums))
         before = history[:len(q)]
         self._sums = history[-n:]
-        return _dcm_of_quats(sums - before)
+        means = sums - before
+        return means / np.linalg.norm(means, axis=1, keepdims=True)
 
     def _angles_from_anchor(self, means: np.ndarray) -> np.ndarray:
-        """The rotation angles (K,) rad of the mean attitudes (K, 3, 3) from the anchor's."""
-        D = np.einsum("ji,kjl->kil", self._anchor, means)
-        return np.arccos(np.clip(0.5 * (np.trace(D, axis1=1, axis2=2) - 1.0), -1.0, 1.0))
+        """The rotation angles (K,) rad of the mean attitudes (K, 4) from the anchor's: 2 acos |⟨q, q_anchor⟩|."""
+        return 2.0 * np.arccos(np.minimum(np.abs(means @ self._anchor), 1.0))
