@@ -186,19 +186,16 @@ class MasterCoarseAlignment(InertialCoarseAlignment):
 
     _best_noise: tuple[float, float] = (np.inf, 0.0)
 
-    def handover(self, noise_rad: float, elapsed_s: float, precise_rad: float, linear_rad: float) -> str | None:
-        """Whether phase 1 has done what it can, given its noise σ now (rad, the larger of heading and level):
-        ``"precise"`` once within ``precise_rad``; ``"stalled"`` once within ``linear_rad`` (the Kalman stage's linear
-        range) and no better than :data:`PHASE1_STALL_S` ago; else None. A good slave reaches the first; a MEMS
-        slave's σ bottoms out at degrees and then grows with its drift, and only the Kalman stage, run over the data
-        from the start (:func:`mounting_prior`), can estimate the biases that cause it."""
+    def handover(self, noise_rad: float, elapsed_s: float, precise_rad: float, linear_rad: float) -> bool:
+        """Whether phase 1 has done what it can, given its noise σ now (rad, the larger of heading and level): it is
+        within ``precise_rad`` (a good slave), or within ``linear_rad`` (the Kalman stage's linear range) and no
+        better than :data:`PHASE1_STALL_S` ago (stalled: a MEMS slave's σ bottoms out at degrees and then grows with
+        its drift, and only the Kalman stage, run over the data from the start (:func:`mounting_prior`), can estimate
+        the biases that cause it)."""
         if noise_rad < self._best_noise[0]:
             self._best_noise = (noise_rad, elapsed_s)
-        if noise_rad <= precise_rad:
-            return "precise"
-        if noise_rad <= linear_rad and elapsed_s - self._best_noise[1] >= PHASE1_STALL_S:
-            return "stalled"
-        return None
+        return noise_rad <= precise_rad or (noise_rad <= linear_rad
+                                             and elapsed_s - self._best_noise[1] >= PHASE1_STALL_S)
 
     def best_mounting(self) -> tuple[np.ndarray, float | None]:
         """(C_bs^bm, its 1-sigma in rad if it is the nominal one): the fit's once resolved, else the nominal."""

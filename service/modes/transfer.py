@@ -104,10 +104,10 @@ class Transfer(KalmanMode):
             return
         # the switch looks at the fit's noise alone (the bias floor stays until the Kalman stage separates it)
         if ad.master.handover_s > 0.0:
-            how = "precise" if elapsed_s + 1e-9 >= ad.master.handover_s else None
+            due = elapsed_s + 1e-9 >= ad.master.handover_s
         else:
-            how = p.coarse.handover(max(noise), elapsed_s, ad.master.handover_sigma_deg * DEG, self.linear_range_rad())
-        solution = self.handover_solution(t_end, q_b_b0, None) if how else None
+            due = p.coarse.handover(max(noise), elapsed_s, ad.master.handover_sigma_deg * DEG, self.linear_range_rad())
+        solution = self.handover_solution(t_end, q_b_b0, None) if due else None
         if solution is None:
             return
         # the prior must hold phase 1's whole error (its σ, the accelerometer bias's tilt in it) and the filter's
