@@ -70,9 +70,9 @@ class DaemonProcess:
     def play_paced(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, seq: int = 0,
                    settle_s: float = 0.2) -> np.ndarray:
         """Write samples (t (N,) s, Δθ, Δv (N, 3)) as frames numbered from ``seq`` at their own rate, one frame per
-        write as a real line delivers them, stamping each write; after ``settle_s`` for the last attitudes, the
-        frame → attitude latency (ms) of each frame whose attitude arrived (the daemon publishing every sample). The
-        statuses' ``loop`` figures published meanwhile are in :attr:`loops`."""
+        write as a real line delivers them, stamping each write as it begins; after ``settle_s`` for the last
+        attitudes, the frame → attitude latency (ms) of each frame whose attitude arrived (the daemon publishing every
+        sample). The statuses' ``loop`` figures published meanwhile are in :attr:`loops`."""
         player = FramePlayer(self.pty.master_fd, 1.0, seq=seq)
         stamps = np.empty(len(t))
         self.arrivals.clear()
@@ -83,7 +83,8 @@ class DaemonProcess:
         try:
             for k in range(len(t)):
                 player.play(t[k:k + 1], dtheta[k:k + 1], dv[k:k + 1])
-                stamps[k] = time.monotonic()
+                # When the write began, not now: the reader can publish the attitude before this thread runs again.
+                stamps[k] = player.write_started
             time.sleep(settle_s)
         finally:
             gc.unfreeze()

@@ -156,6 +156,7 @@ class FramePlayer:
     receiver_fd: int = -1
     seq: int = 0
     frames_written: int = 0
+    write_started: float = float("nan")   # monotonic time (s) at which the last write began
     _origin: tuple[float, float] | None = None   # (data time, wall time) of the first frame
 
     def play(self, t: np.ndarray, dtheta: np.ndarray, dv: np.ndarray, stop: object = None) -> None:
@@ -173,6 +174,7 @@ class FramePlayer:
                 continue
             due_data = t0_data + (time.monotonic() - t0_wall) * self.speed
             end = max(k + 1, int(np.searchsorted(t, due_data, side="right")))
+            self.write_started = time.monotonic()
             write_all(self.fd, encode_samples(t[k:end], dtheta[k:end], dv[k:end], self.seq, self.aiding, self.encode))
             if self.receiver is not None:   # after the IMU frames: a reader that lags the IMU never sees it lead
                 write_all(self.receiver_fd, self.receiver.due(float(t[end - 1])))
