@@ -217,8 +217,8 @@ class GnssConfig:
                                  "overrides)")
     pos_std_m: float = _number(2.0, POSITION_STD_RANGE, "position noise 1-σ per ENU axis (a log's pos_std_m "
                                "overrides)")
-    handover_s: float = _seconds(30.0, 0.0, 3600.0, doc="the Kalman filter starts here (once the coarse heading σ "
-                                 "is within fine.kalman.handover_heading_sigma_deg)")
+    handover_s: float = _seconds(0.0, 0.0, 3600.0, doc="the Kalman filter starts no earlier (and once the coarse "
+                                 "heading σ is within fine.kalman.handover_heading_sigma_deg); 0: as soon as it is")
     input: str = _text("sinsalign", 32, "the receiver's output: the project's aiding frames and messages, NMEA "
                        "0183 (GGA with RMC or VTG) or u-blox UBX NAV-PVT", GNSS_INPUTS)
     serial: str = _text("", doc="the receiver's own serial port; empty: on the IMU's line")

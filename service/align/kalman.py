@@ -140,6 +140,9 @@ class ErrorStateFilter:
         self._C_b_b0 = np.eye(3)
         self.elapsed_s = 0.0
         self._rejecting_since: dict[str, float] = {}   # kind → elapsed_s of the first of its unbroken rejections
+        self.log_likelihood = 0.0
+        """Σ over the updates since :meth:`start` of ln N(ν; 0, S), ν'S⁻¹ν capped at the gate (a glitch costs
+        what a rejection costs, not its size): how well this filter's model predicted its data."""
 
     @property
     def active(self) -> bool:
@@ -188,6 +191,7 @@ class ErrorStateFilter:
             self.P[DV, DV] += coupling @ self.P[PHI, PHI] @ coupling.T
         self.elapsed_s = 0.0
         self._rejecting_since.clear()
+        self.log_likelihood = 0.0
 
     def _rates(self, V_n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         lat, h = self.position[0], self.position[2]
@@ -260,7 +264,10 @@ class ErrorStateFilter:
         H[:, extra] = H_extra
         PHt = self.P @ H.T
         S = H @ PHt + R
-        if not float(nu @ np.linalg.solve(S, nu)) <= self.gate_chi2:
+        nis = float(nu @ np.linalg.solve(S, nu))
+        self.log_likelihood -= 0.5 * ((nis if nis <= self.gate_chi2 else self.gate_chi2)
+                                    + np.linalg.slogdet(2.0 * np.pi * S)[1])
+        if not nis <= self.gate_chi2:
             self.counters[name].rejected += 1
             self._rejecting_since.setdefault(name, self.elapsed_s)
             return False

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import DEG, dcm_from_quat
+from ..align.datasheet_bank import DatasheetBank
 from ..align.gnss_aided import GNSS_COLUMNS, GnssCoarseAlignment, GnssPositionSource, GnssVelocitySource
 from ..align.kalman import (
     ErrorStateFilter,
@@ -100,11 +101,12 @@ class Gnss(KalmanMode):
     def make_coarse(self) -> InertialCoarseAlignment:
         return gnss_coarse(self.p)
 
-    def make_fine(self) -> ErrorStateFilter | None:
+    def make_fine(self) -> DatasheetBank | None:
         p = self.p
         if not p.config.fine.enabled:
             return None
-        return ErrorStateFilter(p.grade, gnss_filter_measurements(p.config.aiding), p.config.fine.kalman.gate_chi2)
+        return DatasheetBank(lambda grade: ErrorStateFilter(grade, gnss_filter_measurements(p.config.aiding),
+                                                            p.config.fine.kalman.gate_chi2), p.grade)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The fix's velocity with the gyro rate (lever arm), and its position in rad / m."""

@@ -14,7 +14,7 @@ import numpy as np
 from ...protocol.results import ResultRecord
 from ..align.coarse import AttitudeSolution, InertialCoarseAlignment
 from ..align.conventions import dcm_from_quat, quat_from_dcm
-from ..align.kalman import ErrorStateFilter
+from ..align.datasheet_bank import DatasheetBank
 from ..align.sensor_model import SIGMA_UNKNOWN_DEG
 from ..records import coarse_record, result_record
 
@@ -48,7 +48,7 @@ class KalmanMode:
     def make_coarse(self) -> InertialCoarseAlignment:
         raise NotImplementedError
 
-    def make_fine(self) -> ErrorStateFilter | None:
+    def make_fine(self) -> DatasheetBank | None:
         raise NotImplementedError
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
@@ -68,7 +68,7 @@ class KalmanMode:
         self.fold(fine, dalpha, dt_s, C_b_b0, aid, fresh)
         return True
 
-    def fold(self, fine: ErrorStateFilter, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray,
+    def fold(self, fine: DatasheetBank, dalpha: np.ndarray, dt_s: float, C_b_b0: np.ndarray,
              aid: np.ndarray | None, fresh: np.ndarray) -> None:
         """Predict ``fine`` over the control step (Δα (3,) m/s in b0 axes, ``dt_s``, ending at body attitude
         C_b^{b0}) and fold each measurement whose aiding is there and whose kind is ``fresh`` (per kind of ``aids``:
@@ -110,8 +110,9 @@ class KalmanMode:
         threshold = p.config.alignment.converged_heading_sigma_deg
         if p.fine is None or not p.fine.active:
             return coarse_record(coarse.solution_at(t_sample, q_b_b0), t_epoch, threshold, p.fine is not None)
-        sigma = p.fine.sigma
-        C_b_n = p.fine.attitude(dcm_from_quat(q_b_b0), t_sample - p.t_step)
+        C_b_b0 = dcm_from_quat(q_b_b0)
+        sigma = p.fine.sigma_about(C_b_b0, t_sample - p.t_step)
+        C_b_n = p.fine.attitude(C_b_b0, t_sample - p.t_step)
         m = self.sigma_margin
         heading_sigma_deg, level_sigma_deg = m * sigma.heading_deg, m * sigma.level_deg
         contradicted = p.fine.contradicted()

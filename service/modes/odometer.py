@@ -13,6 +13,7 @@ import numpy as np
 
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import DEG, dcm_from_quat
+from ..align.datasheet_bank import DatasheetBank
 from ..align.kalman import BodyVelocity, ErrorStateFilter
 from ..align.solvers import make_solver
 from ..align.velocity_aided import MultistageCoarseAlignment, VelocityAidedSource
@@ -46,11 +47,12 @@ class Odometer(KalmanMode):
         return MultistageCoarseAlignment(source, p.grade, make_solver(ad.odo.solver, a.request_rho),
                                          p.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
 
-    def make_fine(self) -> ErrorStateFilter | None:
+    def make_fine(self) -> DatasheetBank | None:
         p = self.p
         if not p.config.fine.enabled:
             return None
-        return ErrorStateFilter(p.grade, [odometer_measurement(p.config.aiding)], p.config.fine.kalman.gate_chi2)
+        return DatasheetBank(lambda grade: ErrorStateFilter(grade, [odometer_measurement(p.config.aiding)],
+                                                            p.config.fine.kalman.gate_chi2), p.grade)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         return [("odo", "odo", aid)]

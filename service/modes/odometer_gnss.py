@@ -16,6 +16,7 @@ import numpy as np
 
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import dcm_from_quat
+from ..align.datasheet_bank import DatasheetBank
 from ..align.gnss_aided import GNSS_COLUMNS, BodyVelocityPairs
 from ..align.kalman import ErrorStateFilter
 from .gnss import gnss_coarse, gnss_coarse_counters, gnss_filter_measurements, gnss_handover, gnss_measurements
@@ -38,13 +39,14 @@ class OdometerGnss(KalmanMode):
         coarse.body_velocity = BodyVelocityPairs(GNSS_COLUMNS, np.array(ad.odo.lever_m), ad.odo.vel_std_mps)
         return coarse
 
-    def make_fine(self) -> ErrorStateFilter | None:
+    def make_fine(self) -> DatasheetBank | None:
         p = self.p
         if not p.config.fine.enabled:
             return None
         ad = p.config.aiding
-        return ErrorStateFilter(p.grade, [odometer_measurement(ad), *gnss_filter_measurements(ad)],
-                                p.config.fine.kalman.gate_chi2)
+        return DatasheetBank(lambda grade: ErrorStateFilter(grade, [odometer_measurement(ad),
+                                                                    *gnss_filter_measurements(ad)],
+                                                            p.config.fine.kalman.gate_chi2), p.grade)
 
     @staticmethod
     def _split(aid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -21,6 +21,7 @@ import numpy as np
 from ...protocol.results import ResultRecord
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import DEG, dcm_from_euler, dcm_from_quat, quat_from_dcm
+from ..align.datasheet_bank import DatasheetBank
 from ..align.kalman import ErrorStateFilter, GnssVelocity, LeverVelocity, MasterAttitude, antenna_lever_velocity
 from ..align.sensor_model import SIGMA_UNKNOWN_DEG
 from ..align.solvers import GroupedWahba
@@ -68,13 +69,14 @@ class Transfer(KalmanMode):
             coarse.nominal = (dcm_from_euler(*(np.array(ad.master.mount_deg) * DEG)), ad.master.mount_sigma_deg * DEG)
         return coarse
 
-    def make_fine(self) -> ErrorStateFilter | None:
+    def make_fine(self) -> DatasheetBank | None:
         p = self.p
         if not p.config.fine.enabled:
             return None
         master = p.config.aiding.master
-        return ErrorStateFilter(p.grade, [master_velocity(master), MasterAttitude(master.att_std_deg * DEG)],
-                                p.config.fine.kalman.gate_chi2)
+        return DatasheetBank(lambda grade: ErrorStateFilter(grade, [master_velocity(master),
+                                                                    MasterAttitude(master.att_std_deg * DEG)],
+                                                            p.config.fine.kalman.gate_chi2), p.grade)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The master's velocity with the slave's gyro rate, and its attitude quaternion."""

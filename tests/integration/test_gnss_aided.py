@@ -17,7 +17,6 @@ from sinsalign.service.aiding import AidingFeed, AidingTrack
 from sinsalign.service.align.conventions import DEG, dcm_from_quat, misalignment
 from sinsalign.service.align.earth import C_n_n0_fixed
 from sinsalign.service.align.gnss_aided import C_n_e, earth_turn
-from sinsalign.service.align.sensor_model import SIGMA_UNKNOWN_DEG
 from sinsalign.service.config import config_from_mapping
 from sinsalign.service.pipeline import build_pipeline
 from sinsalign.tools.evaluate_gnss import GLITCHES
@@ -159,12 +158,13 @@ def test_the_first_fix_error_does_not_pin_the_position_formula():
 
 
 def test_glitches_are_screened_out_and_an_outage_is_bridged_with_sigma_growing():
-    """A 20-m/s velocity glitch in the coarse stage, a 50-m position glitch in the Kalman stage, a 20-s outage."""
+    """A 20-m/s velocity glitch in the coarse stage (the Kalman stage held back to 30 s), a 50-m position glitch in
+    the Kalman stage, a 20-s outage."""
     scenario = replace(get_scenario("seed004"), duration_s=120.0)
     faults = {"glitches": ((20.0, 1.0, 20.0, 0.0), (50.0, 1.0, 0.0, 50.0)), "outage_s": (70.0, 90.0)}
     counters, clean_counters = {}, {}
-    records = run_gnss(scenario, seed=3, faults=faults, counters=counters)
-    clean = run_gnss(scenario, seed=3, counters=clean_counters)
+    records = run_gnss(scenario, seed=3, gnss={"handover_s": 30.0}, faults=faults, counters=counters)
+    clean = run_gnss(scenario, seed=3, gnss={"handover_s": 30.0}, counters=clean_counters)
     t, phi = errors_deg(scenario.for_seed(3), records)
     _, phi_clean = errors_deg(scenario.for_seed(3), clean)
     sigma = np.array([r.heading_sigma_deg for r in records])
@@ -342,16 +342,23 @@ def test_a_mems_or_tactical_imu_is_honest_and_reaches_the_filter(gyro_bias_deg_h
     assert records[-1].phase == "aligned" and records[-1].heading_sigma_deg < 0.1
 
 
-def test_a_filter_that_rejects_its_fixes_does_not_keep_its_sigma():
-    """A MEMS IMU (200°/h, 2 mg) whose log states a tactical datasheet (1°/h, 300 µg): the filter's model cannot
-    follow the data and its gate rejects nearly every fix; without the check it would report `aligned` 6° off
-    under σ 0.08°. After 5 s of unbroken rejections its σ is unknown, nothing is converged, and the operator is told."""
+def test_an_imu_worse_than_its_datasheet_is_aligned_with_the_figures_its_data_show():
+    """A MEMS IMU (200°/h, 2 mg) whose log states a tactical datasheet (1°/h, 300 µg): the datasheet's filter cannot
+    follow the data (its gate rejects most fixes; alone it reported `aligned` 6° off under σ 0.08°). The looser
+    hypotheses of the datasheet bank predict the fixes far better: from then on the attitude and σ are theirs, every
+    record is within 3σ, and the alignment still converges (seed 0 measured: 0.09° off under σ 0.08° at 60 s)."""
     scenario = replace(poor_imu("seed004", 0, 200.0, 0.3, 2000.0), duration_s=100.0, grade=TACTICAL_GRADE)
     counters = {}
     records = run_gnss(scenario, seed=0, counters=counters)
-    assert counters["gnss_vel_rejected"] > 10 * counters["gnss_vel_accepted"]
-    late = [r for r in records if r.t >= 60.0]
-    assert all(r.heading_sigma_deg == SIGMA_UNKNOWN_DEG and not r.converged for r in late)
+    assert counters["gnss_vel_rejected"] > 3 * counters["gnss_vel_accepted"]   # the datasheet's filter's gate
+    t, phi = errors_deg(scenario.for_seed(0), records)
+    heading_sigma = np.array([r.heading_sigma_deg for r in records])
+    level_sigma = np.array([r.level_sigma_deg for r in records])
+    converged = np.array([r.converged for r in records])
+    ratio = np.maximum(np.abs(phi[:, 2]) / heading_sigma, np.abs(phi[:, :2]).max(axis=1) / level_sigma)
+    assert not (converged & (ratio > 3.0)).any()
+    assert (ratio[t >= 13.0] <= 3.0).all()
+    assert records[-1].phase == "aligned" and abs(phi[-1, 2]) < 0.1
 
 
 def test_a_glitch_does_not_make_the_filter_contradicted():
