@@ -37,6 +37,9 @@ PAIR_GATE_CHI2 = 36.0
 """The coarse stage's screen of each pair: |e|²/μ over the fit's residual variance (6σ in 3-D, a false alarm
 in ~1e-6 pairs; at the Kalman gate's 16.3 the seed-004 runs lost 0-2 good pairs in 60 s). A 20-m/s glitch
 is 200σ."""
+MANOEUVRE_NOTICE_S = 30.0
+"""A coarse heading σ still above the hand-over limit this long (s) after the start is told to the operator as a
+flight without the manoeuvre that shows the heading; before it, the fit is still gathering its first fixes."""
 HANDOVER_SIGMA_FACTOR = 3.0
 """The Kalman stage starts with V^n and position from one fix: their σ is this many times the fix's."""
 
@@ -74,8 +77,8 @@ def gnss_handover(p: AlignmentPipeline, mode: KalmanMode, t_end: float, elapsed_
     if not np.isfinite(fix).all() or (elapsed_s + 1e-9 < ad.gnss.handover_s
                                       and not p.coarse.drift_dominates(elapsed_s)):
         return
-    solution = mode.handover_solution(t_end, q_b_b0, ("", f" at {elapsed_s:.0f} s: the Kalman stage waits "
-                                                          "(manoeuvre)"))
+    notice = ("", f" at {elapsed_s:.0f} s: the Kalman stage waits (manoeuvre)")
+    solution = mode.handover_solution(t_end, q_b_b0, notice if elapsed_s >= MANOEUVRE_NOTICE_S else None)
     if solution is None:
         return
     C_b_n = dcm_from_quat(solution.q_b_n)

@@ -56,6 +56,10 @@ class KalmanMode:
         none)."""
         raise NotImplementedError
 
+    def aids_text(self) -> str:
+        """The aiding kinds, as the operator reads them ("odo and gnss")."""
+        return " and ".join(kind for kind, _ in self.aids)
+
     def stages_text(self) -> str:
         return f"{'+'.join(kind for kind, _ in self.aids)}-aided alignment"
 
@@ -124,6 +128,11 @@ class KalmanMode:
                 f"the Kalman stage has rejected every {name} update for {seconds:.1f} s: its model does not fit the "
                 "data (an IMU worse than its datasheet, a wrong lever arm or latency); σ is unknown until it fits "
                 "again: check [sensor] or the log's datasheet keys")
+        if p.fine.believed:
+            bias, noise = p.fine.hypotheses[p.fine.believed]
+            p.last_notice = p.last_notice or (
+                f"the {self.aids_text()} data fit an IMU {bias:g}× worse in bias and {noise:g}× in noise than its "
+                "datasheet: the attitude and σ follow that; check [sensor] or the log's datasheet keys")
         solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), heading_sigma_deg, level_sigma_deg,
                                     coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
         aligned = solution.heading_sigma_deg <= threshold
