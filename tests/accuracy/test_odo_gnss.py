@@ -3,7 +3,7 @@ seeds (docs/results.md, "Odometer and GNSS together"; ``sinsalign eval seed003-o
 
 Bounds: the combined heading MAE at 60 s and 120 s at most 0.8× the better single aid's, a 30-s GNSS outage
 (60-90 s) costing at most 1.5× the clean run's MAE at its end, σ honest (≥ 90 % of epochs inside 2σ from 10 s, no
-converged epoch beyond 3σ). Measured on 20 seeds: 0.18, 0.33, 1.11, 97.1 %, 0; the default run takes 4 of
+converged epoch beyond 3σ). Measured on 20 seeds: 0.15, 0.23, 1.36, 95.3 %, 0; the default run takes 4 of
 them, the full set runs under -m slow.
 """
 import pytest
