@@ -179,5 +179,6 @@ def test_a_window_too_short_for_the_kalman_stage_keeps_the_coarse_stage_honest_a
                                   "fine": {"kalman": {"handover_heading_sigma_deg": 10.0}}})
     pipeline, _, records = run_pipeline(scenario, opened)
     error_in_sigma = heading_error_in_sigma(scenario, records)
-    assert records[-1].phase != "coarse" and pipeline.last_notice is None
+    assert records[-1].phase != "coarse" and "lengthen" not in (pipeline.last_notice or "")
+    # the datasheet bank widens σ as well (a linear filter this far off fits no IMU), but not enough
     assert error_in_sigma[-1] > 5.0
