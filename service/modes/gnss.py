@@ -3,10 +3,11 @@ rate appended for the lever arm.
 
 Observation source: the VIF or PIF source (service/align/gnss_aided.py: antenna velocity and position, lever arm
 compensated); solver: the centred fit weighted by the pairs' stated noise, screening each pair against the fit (a
-glitch is left out and counted); σ from the fit itself. From ``aiding.gnss.handover_s`` on (once the coarse heading
-σ is within ``fine.kalman.handover_heading_sigma_deg``) the fine stage is the error-state Kalman filter with GNSS
-velocity and position measurements (lever arm in both), gated by χ²: it rides through outages on the IMU alone,
-with σ growing. No translation check: this base flies.
+glitch is left out and counted); σ from the fit itself. As soon as the coarse heading σ is within
+``fine.kalman.handover_heading_sigma_deg`` (no earlier than ``aiding.gnss.handover_s``) the fine stage is the
+error-state Kalman filter with GNSS velocity and position measurements (lever arm in both), gated by χ², run as a
+datasheet bank (service/align/datasheet_bank.py): it rides through outages on the IMU alone, with σ growing. No
+translation check: this base flies.
 """
 from __future__ import annotations
 

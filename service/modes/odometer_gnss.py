@@ -4,9 +4,10 @@ velocity V^b (3) per sample, the gyro rate appended for the lever arms.
 Coarse stage: the GNSS one (service/modes/gnss.py) with a second pair per fix, the odometer's V^b against the fix's
 V^n: one velocity in two frames (:class:`~service.align.gnss_aided.BodyVelocityPairs`). They hold the heading from
 the first fixes on, where velocity integration alone waits for accelerations and the odometer's window for its full
-length. Fine stage, from ``aiding.gnss.handover_s`` on once the coarse heading σ is within
-``fine.kalman.handover_heading_sigma_deg``: the error-state Kalman filter with all three measurements, the odometer's
-body velocity (its scale factor and lever arm as states if their priors are set), the GNSS velocity and position.
+length. Fine stage, as soon as the coarse heading σ is within ``fine.kalman.handover_heading_sigma_deg`` (no earlier
+than ``aiding.gnss.handover_s``): the error-state Kalman filter (a datasheet bank) with all three measurements,
+the odometer's body velocity (its scale factor and lever arm as states if their priors are set), the GNSS velocity
+and position.
 Through a GNSS outage the filter goes on with the odometer (the velocity error stays bounded, the heading holds on
 the gyros); the fixes rejoin through the χ² gate.
 """
