@@ -138,3 +138,7 @@ class DatasheetBank:
 
     def extra_slice(self, name: str) -> slice:
         return self.filter.extra_slice(name)
+
+    def extra(self, name: str) -> np.ndarray:
+        """The reported filter's extra states of measurement ``name``."""
+        return self.filter.extra(name)
