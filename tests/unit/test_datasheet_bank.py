@@ -43,6 +43,13 @@ class StandIn:
     def sigma(self) -> AttitudeSigma:
         return AttitudeSigma(self.sigma_deg, self.sigma_deg)
 
+    def extra(self, name: str) -> np.ndarray:
+        return np.array([self.heading_rad])
+
+    @property
+    def counters(self) -> dict:
+        return {"fix": self.grade}
+
 
 def bank_with(gains, headings_deg=(0.0, 0.0, 0.0, 0.0), sigmas_deg=(0.1, 0.3, 0.5, 1.0)) -> DatasheetBank:
     bank = DatasheetBank(StandIn, GRADE)
@@ -98,3 +105,12 @@ def test_a_datasheet_the_data_rule_out_gives_way_to_the_loosest_hypothesis_not_r
 def test_the_weights_are_the_likelihoods_normalised():
     bank = bank_with((0.0, np.log(3.0), -np.inf, 0.0))
     assert bank.weights() == pytest.approx([0.2, 0.6, 0.0, 0.2])
+
+
+def test_the_modes_read_the_reported_filter_s_states_and_the_datasheet_filter_s_counts():
+    """A mode's reads of the filter's own states (a transfer's mounting, an odometer's scale factor) come from the
+    filter it reports; the gate's counts from the datasheet's (a looser filter's would jump when it is reported)."""
+    bank = bank_with((0.0, 30.0, 30.0 - RULED_OUT_LOG + 1.0, 30.0 - RULED_OUT_LOG - 1.0),
+                     headings_deg=(1.0, 0.2, 0.1, 0.0))
+    assert bank.extra("odo") == pytest.approx([0.1 * DEG])
+    assert bank.counters == {"fix": GRADE}
