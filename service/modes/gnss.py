@@ -20,7 +20,6 @@ from ..align.conventions import DEG, dcm_from_quat
 from ..align.datasheet_bank import DatasheetBank
 from ..align.gnss_aided import GNSS_COLUMNS, GnssCoarseAlignment, GnssPositionSource, GnssVelocitySource
 from ..align.kalman import (
-    ErrorStateFilter,
     GnssPosition,
     GnssVelocity,
     Measurement,
@@ -106,11 +105,7 @@ class Gnss(KalmanMode):
         return gnss_coarse(self.p)
 
     def make_fine(self) -> DatasheetBank | None:
-        p = self.p
-        if not p.config.fine.enabled:
-            return None
-        return DatasheetBank(lambda grade: ErrorStateFilter(grade, gnss_filter_measurements(p.config.aiding),
-                                                            p.config.fine.kalman.gate_chi2), p.grade)
+        return self.filter_bank(lambda: gnss_filter_measurements(self.p.config.aiding))
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The fix's velocity with the gyro rate (lever arm), and its position in rad / m."""

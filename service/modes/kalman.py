@@ -7,6 +7,7 @@ is at or below ``alignment.converged_heading_sigma_deg``.
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -15,6 +16,7 @@ from ...protocol.results import ResultRecord
 from ..align.coarse import AttitudeSolution, InertialCoarseAlignment
 from ..align.conventions import dcm_from_quat, quat_from_dcm
 from ..align.datasheet_bank import DatasheetBank
+from ..align.kalman import ErrorStateFilter, Measurement
 from ..align.sensor_model import SIGMA_UNKNOWN_DEG
 from ..records import coarse_record, result_record
 
@@ -50,6 +52,15 @@ class KalmanMode:
 
     def make_fine(self) -> DatasheetBank | None:
         raise NotImplementedError
+
+    def filter_bank(self, measurements: Callable[[], list[Measurement]]) -> DatasheetBank | None:
+        """The Kalman stage of this mode: a datasheet bank of error-state filters on the pipeline's grade, each with
+        its own ``measurements()`` and the configured gate; None if the fine stage is off."""
+        p = self.p
+        if not p.config.fine.enabled:
+            return None
+        gate_chi2 = p.config.fine.kalman.gate_chi2
+        return DatasheetBank(lambda grade: ErrorStateFilter(grade, measurements(), gate_chi2), p.grade)
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """(aiding kind, measurement name, value) of one control step's aiding values (NaN where the kind has

@@ -14,7 +14,7 @@ import numpy as np
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import DEG, dcm_from_quat
 from ..align.datasheet_bank import DatasheetBank
-from ..align.kalman import BodyVelocity, ErrorStateFilter
+from ..align.kalman import BodyVelocity
 from ..align.solvers import make_solver
 from ..align.velocity_aided import MultistageCoarseAlignment, VelocityAidedSource
 from .kalman import KalmanMode
@@ -48,11 +48,7 @@ class Odometer(KalmanMode):
                                          p.sample_period_s, a.obs_interval_s, a.disturbance_velocity_mps)
 
     def make_fine(self) -> DatasheetBank | None:
-        p = self.p
-        if not p.config.fine.enabled:
-            return None
-        return DatasheetBank(lambda grade: ErrorStateFilter(grade, [odometer_measurement(p.config.aiding)],
-                                                            p.config.fine.kalman.gate_chi2), p.grade)
+        return self.filter_bank(lambda: [odometer_measurement(self.p.config.aiding)])
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         return [("odo", "odo", aid)]

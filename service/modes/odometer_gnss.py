@@ -19,7 +19,6 @@ from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import dcm_from_quat
 from ..align.datasheet_bank import DatasheetBank
 from ..align.gnss_aided import GNSS_COLUMNS, BodyVelocityPairs
-from ..align.kalman import ErrorStateFilter
 from .gnss import gnss_coarse, gnss_coarse_counters, gnss_filter_measurements, gnss_handover, gnss_measurements
 from .kalman import KalmanMode
 from .odometer import odometer_measurement
@@ -41,13 +40,8 @@ class OdometerGnss(KalmanMode):
         return coarse
 
     def make_fine(self) -> DatasheetBank | None:
-        p = self.p
-        if not p.config.fine.enabled:
-            return None
-        ad = p.config.aiding
-        return DatasheetBank(lambda grade: ErrorStateFilter(grade, [odometer_measurement(ad),
-                                                                    *gnss_filter_measurements(ad)],
-                                                            p.config.fine.kalman.gate_chi2), p.grade)
+        ad = self.p.config.aiding
+        return self.filter_bank(lambda: [odometer_measurement(ad), *gnss_filter_measurements(ad)])
 
     @staticmethod
     def _split(aid: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

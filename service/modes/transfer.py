@@ -22,7 +22,7 @@ from ...protocol.results import ResultRecord
 from ..align.coarse import InertialCoarseAlignment
 from ..align.conventions import DEG, dcm_from_euler, dcm_from_quat, quat_from_dcm
 from ..align.datasheet_bank import DatasheetBank
-from ..align.kalman import ErrorStateFilter, GnssVelocity, LeverVelocity, MasterAttitude, antenna_lever_velocity
+from ..align.kalman import GnssVelocity, LeverVelocity, MasterAttitude, antenna_lever_velocity
 from ..align.sensor_model import SIGMA_UNKNOWN_DEG
 from ..align.solvers import GroupedWahba
 from ..align.transfer import (
@@ -70,13 +70,8 @@ class Transfer(KalmanMode):
         return coarse
 
     def make_fine(self) -> DatasheetBank | None:
-        p = self.p
-        if not p.config.fine.enabled:
-            return None
-        master = p.config.aiding.master
-        return DatasheetBank(lambda grade: ErrorStateFilter(grade, [master_velocity(master),
-                                                                    MasterAttitude(master.att_std_deg * DEG)],
-                                                            p.config.fine.kalman.gate_chi2), p.grade)
+        master = self.p.config.aiding.master
+        return self.filter_bank(lambda: [master_velocity(master), MasterAttitude(master.att_std_deg * DEG)])
 
     def measurements(self, aid: np.ndarray) -> list[tuple[str, str, np.ndarray]]:
         """The master's velocity with the slave's gyro rate, and its attitude quaternion."""
@@ -130,7 +125,7 @@ class Transfer(KalmanMode):
         while backlog and (elapsed_s - backlog[0][5] > BACKLOG_S or not np.isfinite(backlog[0][3]).all()):
             backlog.popleft()
 
-    def _start(self, fine: ErrorStateFilter, aid: np.ndarray, C_b_b0: np.ndarray, level_rad: float,
+    def _start(self, fine: DatasheetBank, aid: np.ndarray, C_b_b0: np.ndarray, level_rad: float,
                heading_rad: float, M_ref: np.ndarray) -> np.ndarray:
         """Start ``fine`` at a master epoch (``aid``, body attitude C_b^{b0}) about the mounting ``M_ref``; C_bs^n
         there."""
