@@ -14,11 +14,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._attitude import chained_quaternion
+from .conventions import DEG, dcm_from_quat
 from .observations import ObservationSource
 from .sensor_model import SIGMA_UNKNOWN_DEG, SensorGrade, inertial_alignment_sigma
 from .solvers import CentredWahba, RecursiveK, WhitenedWahba
 from .strapdown import InertialIntegrator
 from .swing_bias import SwingBias
+from .turning_bias import TurningBiasTerm
 
 _NONE_OBSERVED = np.empty(0), np.empty((0, 3))
 _NOTHING_TO_FOLD = np.empty((0, 4, 4)), np.empty(0)
@@ -80,11 +82,13 @@ class InertialCoarseAlignment:
     disturbance_velocity_mps : bounded velocity-like disturbance of α in OPREQ's noise model (m/s).
     swing_bias : estimate the accelerometer bias seen through a swinging body and take its term out of α
         before the solver (a fixed site only: :mod:`.swing_bias`); None leaves α as integrated.
+    turning_bias : add to σ what the accelerometer bias seen through a turning body does to the fit (a fixed site
+        only: :mod:`.turning_bias`); None: σ is the time model's alone.
     """
 
     def __init__(self, source: ObservationSource, grade: SensorGrade, solver: RecursiveK | CentredWahba,
                  sample_period_s: float, obs_interval_s: float = 0.1, disturbance_velocity_mps: float = 1e-3,
-                 swing_bias: SwingBias | None = None) -> None:
+                 swing_bias: SwingBias | None = None, turning_bias: TurningBiasTerm | None = None) -> None:
         if obs_interval_s < sample_period_s:
             raise ValueError("obs_interval_s must be at least one sample period")
         self.source = source
@@ -95,6 +99,7 @@ class InertialCoarseAlignment:
         self.obs_interval_s = obs_interval_s
         self.disturbance_velocity_mps = disturbance_velocity_mps
         self.swing_bias = swing_bias
+        self.turning_bias = turning_bias
         self.integrator = InertialIntegrator()
         self._lat = source.site.lat
         self._gravity = source.site.gravity
@@ -168,6 +173,8 @@ class InertialCoarseAlignment:
         alpha_due = alpha[due]
         if self.swing_bias is not None:
             alpha_due = self.swing_bias.correct(elapsed_s[due], alpha_due, q_b_b0[due])
+        if self.turning_bias is not None:
+            self.turning_bias.observe(elapsed_s[due], q_b_b0[due])
         self.observed = elapsed_s[due], alpha_due
         b, r = self.source.vectors(elapsed_s[due], alpha_due, q_b_b0[due], None if aid is None else aid[due])
         return (due, *self.prepare_pairs(elapsed_s[due], b, r))
@@ -211,6 +218,7 @@ class InertialCoarseAlignment:
         clone.source = _shallow_copy(self.source)   # an aided source's store: the clone writes only past its end
         clone.solver = _shallow_copy(self.solver)
         clone.swing_bias = None if self.swing_bias is None else _shallow_copy(self.swing_bias)
+        clone.turning_bias = None if self.turning_bias is None else _shallow_copy(self.turning_bias)
         return clone
 
     @property
@@ -219,7 +227,19 @@ class InertialCoarseAlignment:
         return self.solver.quaternion()
 
     def sigma(self, elapsed_s: float) -> tuple[float, float]:
-        """Reported 1-sigma (heading, level) in degrees after ``elapsed_s`` of alignment."""
+        """Reported 1-sigma (heading, level) in degrees after ``elapsed_s`` of alignment: the time model's
+        (:meth:`model_sigma`) with what the accelerometer bias seen through the body's turns adds."""
+        heading_deg, level_deg = self.model_sigma(elapsed_s)
+        if self.turning_bias is None or heading_deg >= SIGMA_UNKNOWN_DEG:
+            return heading_deg, level_deg
+        heading2, level2 = self.turning_bias.variances(elapsed_s, dcm_from_quat(self.q_b_n0),
+                                                       self.sigma_grade.acc_bias_ms2)
+        return (min(math.hypot(heading_deg, math.sqrt(heading2) / DEG), SIGMA_UNKNOWN_DEG),
+                min(math.hypot(level_deg, math.sqrt(level2) / DEG), SIGMA_UNKNOWN_DEG))
+
+    def model_sigma(self, elapsed_s: float) -> tuple[float, float]:
+        """1-sigma (heading, level) in degrees of the time model alone (the grade σ is reported with, over the time
+        since the start): the noise part the hand-over to the compass loops is judged on."""
         if self.solver.n_obs == 0:
             return SIGMA_UNKNOWN_DEG, SIGMA_UNKNOWN_DEG
         sigma = inertial_alignment_sigma(self.sigma_grade, self._lat, self._gravity, elapsed_s)

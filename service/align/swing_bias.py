@@ -26,6 +26,13 @@ P2 [w×] + (t − P1) w wᵀ of M(t); c = w × b gives it from the fit (the sign
 component along b). Its error enters only through Ω t², so an early, rough w costs nothing.
 M(t) is integrated by the trapezoid rule at the observation instants: the error is (ω Δt)²/12 of the
 swing's part (0.2 % for a 0.2-Hz swing and 0.1-s observations).
+
+The fit's noise is the accelerometer's alone. A swing's D(t) turns within seconds, where the gyro's walk and bias
+barely tilt C_b^{b0}; a body that turns about the vertical (a turntable, a vehicle turning in place) spreads D(t)
+over minutes, where they are the larger error, and ∇̂ ran to three times the true bias (0.2°/s, navigation grade:
+1° of heading under σ 0.1°). So the fit takes no observation once the body has turned :data:`TURNED_DEG` about the
+vertical from its start; ∇̂ stays as it was and the correction goes on with it, and the σ term of a turning body
+(:mod:`.turning_bias`) holds what the bias then does.
 """
 from __future__ import annotations
 
@@ -35,6 +42,9 @@ from ._kernels import earth_axis, swing_corrected, swing_normal_equations
 
 N_PARAMS = 12   # b, c, a (3 each) and ∇ (3)
 RIDGE = 1e-12   # on the equilibrated normal matrix: keeps the first, rank-deficient solves finite (_kernels.pyx)
+TURNED_DEG = 15.0
+"""A body turned this far about the vertical from its start (deg) no longer swings about a steady mean: the fit holds
+(module docstring). Above a yaw swing's ±5° seen from any phase of it, and the Earth's 15°/h sin L."""
 
 
 class SwingBias:
@@ -56,6 +66,7 @@ class SwingBias:
         self.normal[9:, 9:] = np.eye(3) / acc_bias_ms2**2
         self.rhs = np.zeros(N_PARAMS)
         self.params = np.zeros(N_PARAMS)
+        self.held = False   # the body has turned: ∇̂ is held where it was
         # at the last observation: t, E(t)'s integrals, α, C_b^{b0}, M
         self._last = (0.0, np.zeros(3), np.zeros(3), np.eye(3), np.zeros((3, 3)))
 
@@ -75,17 +86,41 @@ class SwingBias:
         """
         if len(elapsed_s) == 0:
             return alpha.copy()
-        t_last, basis_last, alpha_last, C_last, M_last = self._last
-        scaled, scaled_rhs, scale, M, basis, C, self.normal, self.rhs = swing_normal_equations(
-            elapsed_s, q_b_b0, alpha, self._vrw2, t_last, basis_last, alpha_last, C_last, M_last, self.normal,
-            self.rhs)
-        self._last = (float(elapsed_s[-1]), basis[-1], alpha[-1].copy(), C, M[-1])
-        # the one step left to numpy: LAPACK's solve, whose bits a hand-written elimination would not repeat
-        params = scale * np.linalg.solve(scaled, scaled_rhs[:, :, None])[:, :, 0]
-        self.params = params[-1]
+        fitted = 0 if self.held else _before_turned(alpha, q_b_b0)
+        self.held = fitted < len(elapsed_s)
+        M_parts, basis_parts, params_parts = [], [], []
+        for part, fits in ((slice(0, fitted), True), (slice(fitted, len(elapsed_s)), False)):
+            if part.start == part.stop:
+                continue
+            t_last, basis_last, alpha_last, C_last, M_last = self._last
+            scaled, scaled_rhs, scale, M, basis, C, normal, rhs = swing_normal_equations(
+                elapsed_s[part], q_b_b0[part], alpha[part], self._vrw2, t_last, basis_last, alpha_last, C_last,
+                M_last, self.normal, self.rhs)
+            self._last = (float(elapsed_s[part][-1]), basis[-1], alpha[part][-1].copy(), C, M[-1])
+            if fits:
+                self.normal, self.rhs = normal, rhs
+                # the one step left to numpy: LAPACK's solve, whose bits a hand-written elimination would not repeat
+                params = scale * np.linalg.solve(scaled, scaled_rhs[:, :, None])[:, :, 0]
+                self.params = params[-1]
+            else:   # a turned body: ∇̂ held (module docstring), M(t) still followed for the correction
+                params = np.broadcast_to(self.params, (len(M), N_PARAMS))
+            M_parts.append(M)
+            basis_parts.append(basis)
+            params_parts.append(params)
+        M, basis, params = (np.concatenate(parts) for parts in (M_parts, basis_parts, params_parts))
         return swing_corrected(alpha, M, basis, params, self._lat_sign)
 
     def earth_axis_b0(self) -> np.ndarray | None:
         """The Earth axis in b0 axes, w = C_{n0}^{b0} u (unit), from the fit: c = w × b; None before a fit."""
         w = earth_axis(self.params, self._lat_sign)
         return None if not w.any() else w
+
+
+def _before_turned(alpha: np.ndarray, q_b_b0: np.ndarray) -> int:
+    """How many of the observations (α (M, 3) m/s, C_b^{b0} (M, 4)) come before the body has turned
+    :data:`TURNED_DEG` about the vertical from its start: the twist of C_b^{b0} about α's direction (the mean up in
+    b0 axes), 2 atan2(q_v · up, q_w)."""
+    up = alpha / np.maximum(np.linalg.norm(alpha, axis=1), 1e-300)[:, None]
+    twist = 2.0 * np.arctan2(np.einsum("ij,ij->i", q_b_b0[:, 1:], up), q_b_b0[:, 0])
+    turned = np.flatnonzero(np.abs(np.remainder(twist + np.pi, 2.0 * np.pi) - np.pi) > np.radians(TURNED_DEG))
+    return int(turned[0]) if len(turned) else len(alpha)

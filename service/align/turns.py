@@ -26,16 +26,18 @@ TURN_DEG = 5.0
 0.5° off; 5° moves the accelerometer bias's tilt by a twelfth of that, a heading transient within their σ."""
 TURN_WINDOW_S = 20.0
 """The mean attitude's window (s): two periods of a slow swing (a 10-s roll of ±10° leaves its mean within 1.6°),
-short against the loops' time constants. A body that turned is steady again once its mean has stayed within
-:data:`TURN_DEG` of where it was this long."""
+short against the loops' time constants."""
 ANCHOR_REFRESH_S = 120.0
 """A steady body's reference mean is renewed this often (s): the Earth turns it by at most 0.5° in between. A body
-turning slower than :data:`TURN_DEG` per refresh is not a turn: the loops follow it within a twentieth of a bias."""
+turning slower than :data:`TURN_DEG` per refresh is not a turn: the loops follow it within a twentieth of a bias.
+A body that turned is steady again once its mean has stayed within :data:`TURN_DEG` of where it was this long: the
+same rate both ways, so a table turning steadily between the two (0.04-0.25°/s with a shorter wait) is not taken
+for steady and restarted loops that it then turns under (0.9° off under σ 0.08°)."""
 
 WATCHING, TURNING = 0, 1
 """The watch's states: a steady body (watching for a turn), and one that turned (waiting until it is steady)."""
 TURNED, STEADY = 1, 2
-"""Events of :meth:`TurnWatch.scan`: the body turned; it has been steady again for :data:`TURN_WINDOW_S`."""
+"""Events of :meth:`TurnWatch.scan`: the body turned; it has been steady again for :data:`ANCHOR_REFRESH_S`."""
 
 
 class TurnWatch:
@@ -68,8 +70,7 @@ class TurnWatch:
         while k < len(t_s):
             angle = self._angles_from_anchor(means[k:])
             moved = np.flatnonzero(angle > TURN_DEG * DEG)
-            waited = np.flatnonzero(t_s[k:] - self._since_s >= (TURN_WINDOW_S if self.state == TURNING
-                                                                 else ANCHOR_REFRESH_S))
+            waited = np.flatnonzero(t_s[k:] - self._since_s >= ANCHOR_REFRESH_S)
             first = min(moved[0] if len(moved) else len(angle), waited[0] if len(waited) else len(angle))
             if first == len(angle):
                 break

@@ -22,6 +22,7 @@ from ..align.observations import FixedSiteSource
 from ..align.sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, _sigma_terms, bias_limit_rad
 from ..align.solvers import make_solver
 from ..align.swing_bias import SwingBias
+from ..align.turning_bias import TurningBiasTerm
 from ..records import coarse_record, record_of, result_record
 
 if TYPE_CHECKING:
@@ -52,7 +53,8 @@ class FixedBase:
         solver = make_solver(p.solver_name, a.request_rho, p.grade, p.site.gravity, a.disturbance_velocity_mps)
         swing_bias = SwingBias(p.site.lat, p.grade.acc_bias_ms2, p.grade.acc_vrw_ms_rts) if a.swing_bias else None
         return InertialCoarseAlignment(FixedSiteSource(p.site), p.grade, solver, p.sample_period_s,
-                                       a.obs_interval_s, a.disturbance_velocity_mps, swing_bias)
+                                       a.obs_interval_s, a.disturbance_velocity_mps, swing_bias,
+                                       TurningBiasTerm(p.site.lat, p.site.gravity))
 
     def make_fine(self) -> FineAlignment | None:
         p = self.p
@@ -111,7 +113,7 @@ class FixedBase:
         # for a poor gyro it would keep the loops from ever starting; but a heading at the unknown angle's σ has no
         # noise part to speak of (a bias limit beyond the cap would leave 0 of it, and a 200°/h gyro's loops would
         # start with no heading uncertainty at 10 s, their levels 7° off under σ 0.13°)
-        heading_sigma_deg, level_sigma_deg = p.coarse.sigma(elapsed_s)
+        heading_sigma_deg, level_sigma_deg = p.coarse.model_sigma(elapsed_s)
         if heading_sigma_deg >= SIGMA_UNKNOWN_DEG:
             return False
         return self._noise_part(heading_sigma_deg, level_sigma_deg)[1] / DEG <= f.handover_sigma_deg
