@@ -13,7 +13,15 @@ wrong), and reports
   proved wrong is no bound on how wrong it is (a MEMS gyro stated as tactical fits 10× for seconds before 100× wins);
 - σ of the mixture about that attitude (each filter's own σ and its distance from the reported attitude, by weight),
   never below the reported filter's own: until the data have told the hypotheses apart, σ holds what a worse IMU
-  would leave, and a datasheet filter that has wandered from the looser ones does not report itself converged.
+  would leave, and a datasheet filter that has wandered from the looser ones does not report itself converged;
+- whether the datasheet is confirmed (:class:`MixtureSigma`): the datasheet's filter may call itself converged only
+  once the hypotheses that would change its answer (a filter whose σ about the reported attitude is over
+  :data:`WIDER` times the datasheet filter's) hold less than 1 − :data:`CONFIRMED` of the weight. In the first seconds
+  every filter still holds the attitude it started from, and the weights of the looser ones, small but not yet
+  negligible, leave the mixture's σ near the datasheet's: a MEMS IMU stated as tactical was converged 0.2-0.4° off
+  under σ 0.06-0.08° (3-5σ) at 2-5 s after the hand-over, the tenfold hypothesis, its level σ five times the
+  datasheet's, still at 2.5-5 % of the weight, before the data turned to the 100× one at 6 s. Hypotheses that
+  give the same answer need not be told apart: on a GNSS flight a navigation IMU and one ten times worse agree.
 
 On data that fit the datasheet the looser filters fall some nats behind within seconds (their wide priors and noise
 predict the aiding less sharply) and their weight vanishes: the attitude and σ are the datasheet filter's. What a
@@ -22,18 +30,34 @@ datasheet cannot show in so few seconds, a tenfold one cannot either: σ waits f
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from .conventions import DEG, quat_from_dcm, rotvec_from_quat
 from .kalman import ErrorStateFilter, MeasurementCounters
-from .sensor_model import AttitudeSigma, SensorGrade
+from .sensor_model import SensorGrade
 
 HYPOTHESES = ((1.0, 1.0), (10.0, 10.0), (100.0, 10.0), (100.0, 100.0))
 """(the biases' scale, the noise densities' scale) against the datasheet, tightest first: the datasheet, a tenfold
 understated one, a MEMS IMU stated as tactical (its biases a hundredfold, its noise some times), and a hundredfold."""
 RULED_OUT_LOG = 10.0
 """A hypothesis whose likelihood is this much (natural log) below the best one's is ruled out (e^-10: 1 in 22 000)."""
+CONFIRMED = 0.99
+"""The datasheet is confirmed once the hypotheses that would change its answer hold less than 1 − this of the weight."""
+WIDER = 2.0
+"""A hypothesis changes the answer if its filter's σ about the reported attitude (its own and its distance, heading or
+level) is over this many times the datasheet filter's: it would at least double the σ claimed."""
+
+
+@dataclass(frozen=True, slots=True)
+class MixtureSigma:
+    """1-sigma heading and level (deg) of the bank's mixture about the reported attitude, and whether the data have
+    confirmed the datasheet (module docstring): only then may the datasheet's σ be called converged."""
+
+    heading_deg: float
+    level_deg: float
+    confirmed: bool
 
 
 def scaled_grade(grade: SensorGrade, scale: tuple[float, float]) -> SensorGrade:
@@ -110,20 +134,26 @@ class DatasheetBank:
     def attitude(self, C_b_b0: np.ndarray, since_step_s: float = 0.0) -> np.ndarray:
         return self.filter.attitude(C_b_b0, since_step_s)
 
-    def sigma_about(self, C_b_b0: np.ndarray, since_step_s: float = 0.0) -> AttitudeSigma:
+    def sigma_about(self, C_b_b0: np.ndarray, since_step_s: float = 0.0) -> MixtureSigma:
         """1-sigma heading and level (deg) of the mixture about the reported attitude (of body attitude C_b^{b0},
-        ``since_step_s`` after the last step), at least the reported filter's own."""
+        ``since_step_s`` after the last step), at least the reported filter's own; confirmed where a looser
+        hypothesis is reported (its σ holds the datasheet's and its own) or the data have confirmed the datasheet."""
         reported = self.attitude(C_b_b0, since_step_s)
-        heading_var = level_var = 0.0
-        for w, member in zip(self.weights(), self.members, strict=True):
+        weights = self.weights()
+        about = np.empty((len(self.members), 2))   # each member's (heading, level) variance about the reported
+        for k, member in enumerate(self.members):
             # the member's attitude from the reported one, as a rotation in n (E, N, U) axes
             d = rotvec_from_quat(quat_from_dcm(member.attitude(C_b_b0, since_step_s) @ reported.T))
             own = member.sigma
-            heading_var += w * ((own.heading_deg * DEG) ** 2 + d[2] ** 2)
-            level_var += w * ((own.level_deg * DEG) ** 2 + max(d[0] ** 2, d[1] ** 2))
+            about[k] = ((own.heading_deg * DEG) ** 2 + d[2] ** 2,
+                        (own.level_deg * DEG) ** 2 + max(d[0] ** 2, d[1] ** 2))
+        heading_var, level_var = weights @ about
         own = self.filter.sigma
-        return AttitudeSigma(max(float(np.sqrt(heading_var)) / DEG, own.heading_deg),
-                             max(float(np.sqrt(level_var)) / DEG, own.level_deg))
+        datasheet = self.members[0].sigma
+        wider = (about > (WIDER * DEG * np.array([datasheet.heading_deg, datasheet.level_deg])) ** 2).any(axis=1)
+        confirmed = self.believed != 0 or float(weights[1:][wider[1:]].sum()) < 1.0 - CONFIRMED
+        return MixtureSigma(max(float(np.sqrt(heading_var)) / DEG, own.heading_deg),
+                            max(float(np.sqrt(level_var)) / DEG, own.level_deg), confirmed)
 
     def contradicted(self) -> tuple[str, float] | None:
         return self.filter.contradicted()

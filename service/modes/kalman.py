@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -120,7 +121,8 @@ class KalmanMode:
     def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                coarse: InertialCoarseAlignment) -> ResultRecord:
         """The coarse solution's record until the filter runs; then the filter's attitude with its σ (×
-        :attr:`sigma_margin`)."""
+        :attr:`sigma_margin`), converged once σ is within the threshold and the data have confirmed the datasheet
+        (:class:`~.datasheet_bank.MixtureSigma`)."""
         p = self.p
         threshold = p.config.alignment.converged_heading_sigma_deg
         if p.fine is None or not p.fine.active:
@@ -146,5 +148,8 @@ class KalmanMode:
                 "datasheet: the attitude and σ follow that; check [sensor] or the log's datasheet keys")
         solution = AttitudeSolution(t_sample, quat_from_dcm(C_b_n), heading_sigma_deg, level_sigma_deg,
                                     coarse.solver.rho, coarse.solver.trace_P, coarse.solver.n_obs)
-        aligned = solution.heading_sigma_deg <= threshold
-        return result_record(solution, t_epoch, "aligned" if aligned else "fine", threshold)
+        record = result_record(solution, t_epoch, "aligned" if heading_sigma_deg <= threshold else "fine", threshold)
+        if record.converged and not sigma.confirmed:
+            # σ is the datasheet's until the data have told it from a worse IMU that would change it (datasheet_bank)
+            return replace(record, phase="fine", converged=False)
+        return record

@@ -6,7 +6,14 @@ themselves are judged on simulated flights (tests/integration/test_gnss_aided.py
 import numpy as np
 import pytest
 from sinsalign.service.align.conventions import DEG
-from sinsalign.service.align.datasheet_bank import HYPOTHESES, RULED_OUT_LOG, DatasheetBank, scaled_grade
+from sinsalign.service.align.datasheet_bank import (
+    CONFIRMED,
+    HYPOTHESES,
+    RULED_OUT_LOG,
+    WIDER,
+    DatasheetBank,
+    scaled_grade,
+)
 from sinsalign.service.align.sensor_model import AttitudeSigma, SensorGrade
 
 GRADE = SensorGrade(1e-6, 1e-5, 1e-3, 1e-4, 2e-4)
@@ -100,6 +107,27 @@ def test_a_datasheet_the_data_rule_out_gives_way_to_the_loosest_hypothesis_not_r
     assert bank.filter is bank.members[2]
     assert np.allclose(bank.attitude(np.eye(3)), rotation_about_up(0.1 * DEG))
     assert bank.sigma_about(np.eye(3)).heading_deg >= 0.5   # never below the reported filter's own
+
+
+def test_the_datasheet_is_confirmed_once_the_hypotheses_that_would_change_its_sigma_hold_under_one_percent():
+    """The tenfold hypothesis, its σ over twice the datasheet's, at 2 % of the weight: not confirmed; at 0.5 %:
+    confirmed. The same weights on hypotheses whose σ is within twice the datasheet's change nothing."""
+    lead = np.log(0.98 / 0.02)
+    assert 1.0 - CONFIRMED < 0.02
+    wide = bank_with((lead, 0.0, -np.inf, -np.inf), sigmas_deg=(0.1, 0.1 * WIDER * 1.1, 0.5, 1.0))
+    assert wide.weights()[1] == pytest.approx(0.02) and not wide.sigma_about(np.eye(3)).confirmed
+    wide = bank_with((np.log(0.995 / 0.005), 0.0, -np.inf, -np.inf), sigmas_deg=(0.1, 0.1 * WIDER * 1.1, 0.5, 1.0))
+    assert wide.sigma_about(np.eye(3)).confirmed
+    alike = bank_with((lead, 0.0, -np.inf, -np.inf), sigmas_deg=(0.1, 0.1 * WIDER * 0.9, 0.5, 1.0))
+    assert alike.sigma_about(np.eye(3)).confirmed
+    far = bank_with((lead, 0.0, -np.inf, -np.inf), headings_deg=(0.0, 0.3, 0.0, 0.0),
+                    sigmas_deg=(0.1, 0.1, 0.5, 1.0))   # the same σ, but 3σ away from the datasheet's attitude
+    assert not far.sigma_about(np.eye(3)).confirmed
+
+
+def test_a_looser_hypothesis_reported_is_confirmed_by_its_own_sigma():
+    bank = bank_with((0.0, 30.0, 29.0, -np.inf), headings_deg=(1.0, 0.2, 0.1, 0.0))
+    assert bank.believed == 2 and bank.sigma_about(np.eye(3)).confirmed
 
 
 def test_the_weights_are_the_likelihoods_normalised():
