@@ -426,7 +426,11 @@ class AlignmentPipeline:
                 limit = limits[min(bisect_right(limits, b), len(limits) - 1)]
                 resume = False
                 while limit > b and self._blocks_ready():
-                    b, stage, folded = blocks.run(self, b, limit, folded, measured, resume)
+                    handover = (self.mode.handover_terms() if self.fine is not None and not self.fine.active
+                                else None)
+                    b, stage, folded, self._alpha_step, self._t_step, self._next_check_s = blocks.run(
+                        b, limit, folded, measured, resume, self._alpha_step, self._t_step, self._next_check_s,
+                        handover)
                     if stage != VERDICT:
                         break
                     self._take_verdict()   # then the block's control step, compiled again

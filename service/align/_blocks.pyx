@@ -102,6 +102,7 @@ cdef class FixedBaseBlocks:
     cdef const double[:, :, ::1] dK
     cdef const double[::1] trace_R, observed_s
     cdef const double[:, ::1] observed_alpha
+    cdef object solver, noise, motion, fine   # the estimators whose state a run takes and gives back
     cdef double keys[F_SLOTS][KEY]
     cdef double F[F_SLOTS][64]
     cdef int n_F, next_F
@@ -118,19 +119,19 @@ cdef class FixedBaseBlocks:
         least time and σ), σ's ceiling ``sigma_unknown_deg`` and the estimator's ``efficiency``
         (sensor_model.ESTIMATOR_EFFICIENCY)."""
         cdef int i
+        self.solver, self.noise, self.motion, self.fine = solver, noise, motion, fine
         self.lat, self.gravity = lat, gravity
         self.trace_Q, self.fixed_rho, self.policy = solver.trace_Q, solver.fixed_rho, policy
         self.with_noise = noise is not None
         if self.with_noise:
             self.settle_steps, self.outlier_factor, self.min_outlier_count, self.verdict_steps = noise_constants
-            self.alpha_sum, self.beta_sum, self.moments = noise._alpha_sum, noise._beta_sum, noise._moments
-            self.lags, self.sums, self.counts = noise._lags, noise._sums, noise._counts
+            (self.alpha_sum, self.beta_sum, self.moments, self.lags, self.sums,
+             self.counts) = noise.running_sums
         self.with_motion = motion is not None
         if self.with_motion:
-            self.ring_n, self.suspect_mps, self.suspect_mps_per_s = motion._n, suspect_mps, suspect_mps_per_s
+            self.suspect_mps, self.suspect_mps_per_s = suspect_mps, suspect_mps_per_s
             self.check_interval_s = check_interval_s
-            self.ring_elapsed, self.ring_alpha, self.ring_beta = motion._elapsed, motion._alpha, motion._beta
-            self.ring_C = motion._C
+            self.ring_n, self.ring_elapsed, self.ring_alpha, self.ring_beta, self.ring_C = motion.ring
         self.with_fine = fine is not None
         self.n_F = self.next_F = 0
         if self.with_fine:
@@ -206,11 +207,16 @@ cdef class FixedBaseBlocks:
         self.alpha_array, self.alpha = alpha_array, alpha_array
         self.dK, self.trace_R, self.observed_s, self.observed_alpha = dK, trace_R, observed_s, observed_alpha
 
-    def run(self, pipeline, Py_ssize_t b, Py_ssize_t limit, Py_ssize_t folded, Py_ssize_t measured, bint resume):
+    def run(self, Py_ssize_t b, Py_ssize_t limit, Py_ssize_t folded, Py_ssize_t measured, bint resume, step_alpha,
+            double step_t, double next_check, handover):
         """Blocks ``b`` to ``limit`` − 1 of the chunk (:meth:`chunk`), the first with its observations folded up to
         ``folded`` already and measured from ``measured`` on (``resume``: all of them folded and measured, its
-        control step left). Returns (the block it stopped at, :data:`DONE`, :data:`VERDICT`, :data:`CONTROL` or
-        :data:`MOTION`, the observations folded)."""
+        control step left). The pipeline's control-step state goes in and comes back: α (3,) m/s and the time (s) of
+        the last control step, and the elapsed time (s) of the next motion check; ``handover``
+        (:meth:`FixedBase.handover_terms`) where the loops have not started, else None. The estimators' own state is
+        taken from them and given back through their faces (``RecursiveK.load``, the meter's and the monitor's
+        counts, the loops' state). Returns (the block it stopped at, :data:`DONE`, :data:`VERDICT`, :data:`CONTROL`
+        or :data:`MOTION`, the observations folded, the last control step's α and time, the next check's time)."""
         cdef const Py_ssize_t[::1] ends = self.ends, fold_end = self.fold_end
         cdef const double[:] t = self.t, elapsed = self.elapsed
         cdef const double[:, :] alpha = self.alpha
@@ -218,7 +224,7 @@ cdef class FixedBaseBlocks:
         cdef const double[::1] trace_R = self.trace_R, observed_s = self.observed_s
         cdef const double[:, ::1] observed_alpha = self.observed_alpha
         cdef Py_ssize_t c = b, e, upto, i, j
-        solver, noise, motion, fine = pipeline.coarse.solver, pipeline.noise, pipeline.motion, pipeline.fine
+        solver, noise, motion, fine = self.solver, self.noise, self.motion, self.fine
         # the solver
         K_out = np.array(solver.K, dtype=float, copy=True)
         cdef double[:, ::1] K_view = K_out
@@ -226,16 +232,17 @@ cdef class FixedBaseBlocks:
         cdef double m = solver.m, trace_P = solver.trace_P, rho = solver.rho
         cdef long n_obs = solver.n_obs
         cdef double q[4]
-        cdef bint q_known = solver._q is not None, q_new = False
+        known = solver.known_quaternion
+        cdef bint q_known = known is not None, q_new = False
         cdef const double[::1] q_view
         if q_known:
-            q_view = solver._q
+            q_view = known
             q[0], q[1], q[2], q[3] = q_view[0], q_view[1], q_view[2], q_view[3]
         # the pipeline's step
         cdef double alpha_step[3]
-        cdef const double[:] alpha_step_view = pipeline._alpha_step
+        cdef const double[:] alpha_step_view = step_alpha
         alpha_step[0], alpha_step[1], alpha_step[2] = alpha_step_view[0], alpha_step_view[1], alpha_step_view[2]
-        cdef double t_step = pipeline._t_step, next_check_s = pipeline._next_check_s
+        cdef double t_step = step_t, next_check_s = next_check
         # the noise meter
         cdef double[:, ::1] alpha_sum, beta_sum
         cdef double[::1] moments
@@ -249,7 +256,7 @@ cdef class FixedBaseBlocks:
         if self.with_noise:
             alpha_sum, beta_sum, moments = self.alpha_sum, self.beta_sum, self.moments
             lags, sums, counts = self.lags, self.sums, self.counts
-            steps, bad_until = noise.steps, noise._bad_until
+            steps, bad_until = noise.steps, noise.bad_until
             if noise.C_n0_b0 is not None:
                 with_rough = True
                 C_rough_view = noise.C_n0_b0
@@ -266,7 +273,7 @@ cdef class FixedBaseBlocks:
         if self.with_motion:
             ring_elapsed, ring_alpha, ring_beta = self.ring_elapsed, self.ring_alpha, self.ring_beta
             ring_C = self.ring_C
-            ring_count = motion._count
+            ring_count = motion.ring_count
         # the compass loops
         cdef double[:, ::1] C_b0_p, P, stored_dalpha
         cdef double[::1] V, stored_dt
@@ -283,7 +290,7 @@ cdef class FixedBaseBlocks:
                 I_E, I_N, y, t_loop_s = state.I_E, state.I_N, state.y, state.t_loop_s
                 azimuth_on, earth_sign = state.azimuth_on, state.earth_sign
             else:
-                for i, term in enumerate(pipeline.mode.handover_terms()):
+                for i, term in enumerate(handover):
                     handover_terms[i] = term
             grade = fine.loops.grade
             buffer = fine.buffer
@@ -402,22 +409,16 @@ cdef class FixedBaseBlocks:
                             checked = True
                 c += 1
         # the state back into its objects
-        solver.K, solver.m, solver.trace_P, solver.n_obs, solver.rho = K_out, m, trace_P, n_obs, rho
-        if not q_known:
-            solver._q = None
-        elif q_new:
-            q_out = np.array([q[0], q[1], q[2], q[3]])
-            q_out.flags.writeable = False
-            solver._q = q_out
-        if stepped >= 0:
-            pipeline._alpha_step = self.alpha_array[stepped]
-            pipeline._t_step = t_step
-        pipeline._next_check_s = next_check_s
+        # the quaternion of K where the loop solved for it after its last fold, else as it was, unless K was folded
+        q_out = None
+        if q_known:
+            q_out = np.array([q[0], q[1], q[2], q[3]]) if q_new else known
+        solver.load(K_out, m, trace_P, n_obs, rho, q_out)
         if self.with_noise:
-            noise.steps, noise._bad_until = steps, bad_until
+            noise.steps, noise.bad_until = steps, bad_until
             noise.outliers += outliers
         if self.with_motion:
-            motion._count = ring_count
+            motion.ring_count = ring_count
             if checked:
                 motion.window_speed_mps, motion.suspect = window_speed, False
         if self.with_fine:
@@ -426,5 +427,5 @@ cdef class FixedBaseBlocks:
                 state.azimuth_on = azimuth_on
             buffer.count = stored
             fine.passes_done = passes_done
-        return c, stage, folded
+        return c, stage, folded, self.alpha_array[stepped] if stepped >= 0 else step_alpha, t_step, next_check_s
 

@@ -94,12 +94,20 @@ class MotionMonitor:
         self._alpha = np.zeros((self._n + 1, 3))
         self._beta = np.zeros((self._n + 1, 3))
         self._C = np.zeros((self._n + 1, 3, 3))
-        self._count = 0
+        self.ring_count = 0
+        """Checks stored in the ring since it last started (the slot of the next is this modulo its length)."""
         self.episode: MotionEpisode | None = None
         self.window_speed_mps = 0.0
         """The horizontal velocity gained over the last window at the last check (m/s; 0 until the window fills)."""
         self.suspect = False
         """The base may be starting to move (see :data:`SUSPECT_FRACTION`), as of the last check."""
+
+    @property
+    def ring(self) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The checks' ring, for a compiled loop that stores its checks itself (_blocks.pyx): the window in checks n,
+        and n + 1 slots of elapsed time (s), α and β (m/s, b0 and n0 axes) and C_b0^n0, written in place; with
+        :attr:`ring_count` the whole state a check changes while the base is still."""
+        return self._n, self._elapsed, self._alpha, self._beta, self._C
 
     def _gained(self, C_b0_n0: np.ndarray, elapsed_s: float, alpha: np.ndarray, beta: np.ndarray,
                 alpha_from: np.ndarray, beta_from: np.ndarray) -> tuple[float, float]:
@@ -112,14 +120,14 @@ class MotionMonitor:
         """One check at ``elapsed_s``: α (3,) m/s (b0 axes) there, the current estimate C_b0^n0 and what gives the
         1-sigma (heading, level) errors (rad) of the estimate after a given elapsed time, asked only when the velocity
         calls for them (most checks find the base still without). None: the base stays still."""
-        slot = self._count % (self._n + 1)
-        oldest = (self._count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
-        self._count += 1
+        slot = self.ring_count % (self._n + 1)
+        oldest = (self.ring_count + 1) % (self._n + 1)   # the entry one window ago, once the ring is full
+        self.ring_count += 1
         episode = self.episode
         # the entry stored (β there computed), and with the window full and no episode its velocity gained
         speed = store_and_gain(self._lat, self._gravity, elapsed_s, alpha_b0, C_b0_n0, self._elapsed, self._alpha,
-                               self._beta, self._C, slot, oldest, self._count > self._n and episode is None)
-        if self._count <= self._n:
+                               self._beta, self._C, slot, oldest, self.ring_count > self._n and episode is None)
+        if self.ring_count <= self._n:
             return None
         if episode is None:
             self.window_speed_mps = speed
@@ -153,5 +161,5 @@ class MotionMonitor:
             return MotionCheck("moving", speed)
         self.episode = None
         self.window_speed_mps, self.suspect = 0.0, False
-        self._count = 0   # the window starts afresh: the next detection compares with data after the rest
+        self.ring_count = 0   # the window starts afresh: the next detection compares with data after the rest
         return MotionCheck("stopped", episode.peak_mps, restart=episode.peak_mps > 2.0 * self.threshold_mps + drift)

@@ -113,7 +113,7 @@ class NoiseMeter:
         self._sums = np.zeros(len(self._lags))
         self._counts = np.zeros(len(self._lags))
         self.steps = 0
-        self._bad_until = -1   # the last step of the last event's span
+        self.bad_until = -1   # the last step of the last event's span
         self.outliers = 0
         self.C_n0_b0: np.ndarray | None = None
         """The rough estimate that takes the reference's curvature out (None: left in, at the start)."""
@@ -128,13 +128,20 @@ class NoiseMeter:
         shortest lag is ready each lag's stencil D_τ and its horizontal square are formed; a shortest-lag square
         :data:`OUTLIER_FACTOR` times its running mean marks an event, and the squares of every lag whose stencil
         reaches into an event's span are left out."""
-        self.steps, self._bad_until, outliers, verdict_due = hadamard_feed(
+        self.steps, self.bad_until, outliers, verdict_due = hadamard_feed(
             self._lat, self._gravity, np.ascontiguousarray(elapsed_s, dtype=float),
             np.ascontiguousarray(alpha_b0, dtype=float), self._alpha_sum, self._beta_sum, self._moments,
-            self._lags, self._sums, self._counts, self.C_n0_b0, self.steps, self._bad_until,
+            self._lags, self._sums, self._counts, self.C_n0_b0, self.steps, self.bad_until,
             round(SETTLE_S / self.step_s), OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS)
         self.outliers += outliers
         return verdict_due
+
+    @property
+    def running_sums(self) -> tuple[np.ndarray, ...]:
+        """The arrays the feed writes in place, for a compiled loop that feeds the meter itself (_blocks.pyx): the
+        rings of α's and β's running sums (capacity, 3) m/s, the trend's moments, each lag's length in steps, and its
+        sum of squares and count. With :attr:`steps` and :attr:`bad_until` they are the whole state a feed changes."""
+        return self._alpha_sum, self._beta_sum, self._moments, self._lags, self._sums, self._counts
 
     def figures(self) -> NoiseFigures | None:
         """The fit of the lags with :data:`MIN_SPAN_S` of stencils; None before three lags have them. Each lag's

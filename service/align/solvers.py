@@ -129,6 +129,19 @@ class RecursiveK:
             self.trace_P, self.n_obs, self.rho, self.trace_Q, _GAIN_POLICY[self.solver], self.fixed_rho)
         self._q = None
 
+    @property
+    def known_quaternion(self) -> np.ndarray | None:
+        """The quaternion of K if it has been solved for since the last fold (read-only), else None."""
+        return self._q
+
+    def load(self, K: np.ndarray, m: float, trace_P: float, n_obs: int, rho: float, q: np.ndarray | None) -> None:
+        """The state a compiled loop over the folds left (_blocks.pyx): K, its weight, tr P, the pairs folded and the
+        last gain, with the quaternion of K where the loop solved for it (None: not solved since its last fold)."""
+        self.K, self.m, self.trace_P, self.n_obs, self.rho = K, m, trace_P, n_obs, rho
+        if q is not None:
+            q.flags.writeable = False
+        self._q = q
+
     def quaternion(self) -> np.ndarray:
         """Current estimate of C_b^n(0) as [w, x, y, z] (read-only); identity before any observation. Solved once
         per fold: every record, σ and check between two observations asks for the same K's."""

@@ -22,8 +22,8 @@ class _Counting:
     def chunk(self, *arrays: object) -> None:
         self.blocks.chunk(*arrays)
 
-    def run(self, pipeline: AlignmentPipeline, b: int, limit: int, *state: object) -> tuple:
-        stopped = self.blocks.run(pipeline, b, limit, *state)
+    def run(self, b: int, limit: int, *state: object) -> tuple:
+        stopped = self.blocks.run(b, limit, *state)
         self.completed += stopped[0] - b
         return stopped
 
