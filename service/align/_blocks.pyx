@@ -23,6 +23,7 @@ include "_noise_feed.pxi"
 include "_fold.pxi"
 include "_platform.pxi"
 include "_compass_core.pxi"
+include "_policy.pxi"
 
 import numpy as np
 
@@ -46,21 +47,6 @@ cdef enum:
     MAX_KNOTS = 32
 
 cdef double DEG = M_PI / 180.0
-
-
-cdef double _geometric(const double* knots, const double* values, int n, double t) noexcept nogil:
-    """compass._geometric: σ between knots interpolated geometrically."""
-    cdef int j = 0
-    cdef double a, b, f
-    if t >= knots[n - 1]:
-        return values[n - 1]
-    while j + 1 < n and knots[j + 1] <= t:   # bisect_right − 1
-        j += 1
-    a, b = values[j], values[j + 1]
-    if a <= 0.0:
-        return 0.0 if b <= 0.0 or t < knots[j + 1] else b
-    f = (t - knots[j]) / (knots[j + 1] - knots[j])
-    return a * pow(b / a, f)
 
 
 cdef class FixedBaseBlocks:
@@ -175,27 +161,6 @@ cdef class FixedBaseBlocks:
         _transition(key[0], key[1], key[2], key[3] != 0.0, key[4], key[5], key[6], key[7], key[8],
                     self.loops_gravity, self.radius_m, self.omega_cos, self.omega_sin, key[9], self.F[s])
         return self.F[s]
-
-    cdef bint _handover_due(self, double elapsed_s, long n_obs, const double* terms) noexcept nogil:
-        """FixedBase._handover_due: at the configured time, or once the noise part of the coarse heading σ is within
-        the threshold (``terms``: :meth:`FixedBase.handover_terms`, the last the data's check)."""
-        cdef double drift2, noise_heading2, heading2, heading_deg
-        if self.handover == 1:
-            return elapsed_s >= self.handover_time_s
-        if n_obs == 0 or elapsed_s < self.handover_min_s or terms[6] != 0.0:
-            return False
-        if elapsed_s <= 0.0:   # sensor_model.inertial_alignment_sigma
-            heading_deg = self.sigma_unknown_deg
-        else:
-            drift2 = pow(terms[4] * elapsed_s, 2.0)
-            noise_heading2 = terms[0] / pow(elapsed_s, 3.0) + terms[1] / elapsed_s + terms[2] / pow(elapsed_s, 5.0)
-            heading2 = terms[3] + drift2 + self.efficiency * noise_heading2
-            heading_deg = min(sqrt(heading2) / DEG, self.sigma_unknown_deg)
-        if heading_deg >= self.sigma_unknown_deg:   # an unknown heading: no noise part to hand over
-            return False
-        # FixedBase._noise_part: the datasheet's bias limit taken out
-        heading2 = max(pow(heading_deg * DEG, 2.0) - pow(terms[5], 2.0), 0.0)
-        return sqrt(heading2 / self.efficiency) / DEG <= self.handover_sigma_deg
 
     def chunk(self, const Py_ssize_t[::1] ends, const Py_ssize_t[::1] fold_end, const double[:] t,
               const double[:] elapsed, alpha_array, const double[:, :, ::1] dK, const double[::1] trace_R,
@@ -335,8 +300,10 @@ cdef class FixedBaseBlocks:
                 if verdict_due:
                     stage = STOP_VERDICT
                     break
-                if self.with_fine and ((active and stored == capacity - 1 and not passes_done) or
-                                       (not active and self._handover_due(elapsed[ends[c]], n_obs, handover_terms))):
+                if self.with_fine and ((active and stored == capacity - 1 and not passes_done) or (
+                        not active and _handover_due(self.handover == 1, self.handover_time_s, self.handover_min_s,
+                                                     self.handover_sigma_deg, self.sigma_unknown_deg, self.efficiency,
+                                                     elapsed[ends[c]], n_obs, handover_terms))):
                     stage = STOP_CONTROL   # the hand-over, or the step that fills the store (the passes start)
                     break
                 # the control step: Δα and Δ since the last one
@@ -429,3 +396,19 @@ cdef class FixedBaseBlocks:
             fine.passes_done = passes_done
         return c, stage, folded, self.alpha_array[stepped] if stepped >= 0 else step_alpha, t_step, next_check_s
 
+
+
+def handover_due(bint by_time, double time_s, double least_s, double sigma_deg, double unknown_deg, double efficiency,
+                 double elapsed_s, long n_obs, terms) -> bool:
+    """Whether the coarse stage hands over to the compass loops (_policy.pxi ``_handover_due``; ``terms`` the seven of
+    FixedBase.handover_terms): the rule the compiled loop applies, for the Python steps."""
+    cdef double held[7]
+    cdef int i
+    for i in range(7):
+        held[i] = terms[i]
+    return _handover_due(by_time, time_s, least_s, sigma_deg, unknown_deg, efficiency, elapsed_s, n_obs, held)
+
+
+def noise_part(double sigma_deg, double bias_rad, double efficiency) -> float:
+    """The noise part (rad) of a coarse σ (deg) with the bias limit ``bias_rad`` (_policy.pxi ``_noise_part``)."""
+    return _noise_part(sigma_deg, bias_rad, efficiency)

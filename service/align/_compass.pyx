@@ -14,13 +14,14 @@ triangle is computed and mirrored.
 
 Frames and units as in compass.py: C_{b0}^{p} (3, 3), V^p (E, N) m/s, rates rad/s, Δα m/s in b0 axes.
 """
-from libc.math cimport ceil, cos, fabs, log2, pow, sin, sqrt
+from libc.math cimport M_PI, ceil, cos, fabs, log2, pow, sin, sqrt
 
 import numpy as np
 
 
 include "_platform.pxi"
 include "_compass_core.pxi"
+include "_policy.pxi"
 
 
 def compass_step(double[:, ::1] C_b0_p, double[::1] V, double I_E, double I_N, double y,
@@ -82,3 +83,9 @@ def transition(double K1L, double K2L, double K3L, bint azimuth_on, double K1A, 
     _transition(K1L, K2L, K3L, azimuth_on, K1A, K2A, K3A, K4A, earth_sign, gravity, radius_m, omega_cos, omega_sin,
                 dt_s, &F[0, 0])
     return F_out
+
+
+def schedule_sigma(const double[::1] knots, const double[::1] values, double t) -> float:
+    """The gain schedule's σ at loop time ``t`` s (_policy.pxi ``_geometric``: the rule the compiled block loop
+    applies), of ``values`` at ``knots`` (same length, increasing from 0)."""
+    return _geometric(&knots[0], &values[0], knots.shape[0], t)

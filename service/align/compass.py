@@ -38,14 +38,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from bisect import bisect_right
 from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ._attitude import fine_record_angles
-from ._compass import compass_step, compass_steps, platform_attitude, transition
+from ._compass import compass_step, compass_steps, platform_attitude, schedule_sigma, transition
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
@@ -100,19 +99,13 @@ class GainSchedule:
         return self.time_s[-1]
 
     def sigmas(self, t_s: float) -> tuple[float, float]:
-        """(level σ, azimuth σ) at loop time ``t_s``; azimuth σ is 0 before its loop starts."""
-        return _geometric(self.time_s, self.level_sigma, t_s), _geometric(self.time_s, self.azimuth_sigma, t_s)
+        """(level σ, azimuth σ) at loop time ``t_s``; azimuth σ is 0 before its loop starts (compiled: the rule the
+        block loop applies)."""
+        return self.sigma_of(self.level_sigma, t_s), self.sigma_of(self.azimuth_sigma, t_s)
 
-
-def _geometric(knots: tuple[float, ...], values: tuple[float, ...], t: float) -> float:
-    if t >= knots[-1]:
-        return values[-1]
-    j = bisect_right(knots, t) - 1
-    a, b = values[j], values[j + 1]
-    if a <= 0.0:
-        return 0.0 if b <= 0.0 or t < knots[j + 1] else b
-    f = (t - knots[j]) / (knots[j + 1] - knots[j])
-    return a * (b / a) ** f
+    def sigma_of(self, values: tuple[float, ...], t_s: float) -> float:
+        """``values`` (one per knot) at loop time ``t_s``, interpolated geometrically."""
+        return schedule_sigma(np.asarray(self.time_s, dtype=float), np.asarray(values, dtype=float), t_s)
 
 
 def rotation_matrix(rotvec: np.ndarray) -> np.ndarray:
@@ -330,7 +323,7 @@ class CompassLoops:
     def sigma(self, state: CompassState) -> AttitudeSigma:
         """1-sigma heading and level error (deg): bias limit, azimuth offset and the loop's noise."""
         bias_heading, bias_level = bias_limit_rad(self.bias_grade, self.site.lat, self.gravity)
-        azimuth_sigma = _geometric(self.schedule.time_s, self.schedule.azimuth_sigma, state.t_loop_s)
+        azimuth_sigma = self.schedule.sigma_of(self.schedule.azimuth_sigma, state.t_loop_s)
         offset = (2.0 * self.bias_grade.gyro_bias_rad_s / azimuth_sigma if state.azimuth_on and azimuth_sigma > 0
                   else 0.0)
         P = state.P

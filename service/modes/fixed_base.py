@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ...protocol.results import ResultRecord
+from ..align._blocks import handover_due, noise_part
 from ..align.coarse import AttitudeSolution, InertialCoarseAlignment
 from ..align.compass import GainSchedule
 from ..align.conventions import DEG, dcm_from_quat, quat_from_dcm
@@ -101,22 +102,17 @@ class FixedBase:
                          t_loop_s=p.config.fine.compass.handover_schedule_s)
 
     def _handover_due(self, elapsed_s: float) -> bool:
-        p, f = self.p, self.p.config.fine.compass
-        if f.handover == "time":
-            return elapsed_s >= f.handover_time_s
-        if p.coarse.solver.n_obs == 0 or elapsed_s < f.handover_min_s or p.noise_unchecked:
-            # a datasheet that claims far too little noise would hand over at the first observation, before the
-            # heading is known at all, and the loops cannot pull in a large error; nor may the loops start from a
-            # σ the data's own noise has not checked yet (they carry it on)
-            return False
-        # the noise part only: the bias floor stays whatever the stage, and above the threshold
-        # for a poor gyro it would keep the loops from ever starting; but a heading at the unknown angle's σ has no
-        # noise part to speak of (a bias limit beyond the cap would leave 0 of it, and a 200°/h gyro's loops would
-        # start with no heading uncertainty at 10 s, their levels 7° off under σ 0.13°)
-        heading_sigma_deg, level_sigma_deg = p.coarse.model_sigma(elapsed_s)
-        if heading_sigma_deg >= SIGMA_UNKNOWN_DEG:
-            return False
-        return self._noise_part(heading_sigma_deg, level_sigma_deg)[1] / DEG <= f.handover_sigma_deg
+        """The hand-over to the compass loops (``_policy.pxi``, the rule the compiled loop applies): at the configured
+        time, or once the noise part of the coarse heading σ is within the threshold. The noise part only: the bias
+        floor stays whatever the stage, and above the threshold for a poor gyro it would keep the loops from ever
+        starting; but a heading at the unknown angle's σ has no noise part to speak of (a bias limit beyond the cap
+        would leave 0 of it, and a 200°/h gyro's loops would start with no heading uncertainty at 10 s, their levels
+        7° off under σ 0.13°). Not before a least time, nor before the data's noise has checked σ: a datasheet that
+        claims far too little noise would hand over at the first observation, and the loops carry σ on."""
+        f = self.p.config.fine.compass
+        return handover_due(f.handover == "time", f.handover_time_s, f.handover_min_s, f.handover_sigma_deg,
+                            SIGMA_UNKNOWN_DEG, ESTIMATOR_EFFICIENCY, elapsed_s, self.p.coarse.solver.n_obs,
+                            self.handover_terms())
 
     def handover_terms(self) -> tuple[float, ...]:
         """What the compiled loop (service/align/_blocks.pyx) needs of the hand-over test: the noise terms of the
@@ -131,15 +127,12 @@ class FixedBase:
                 coarse.sigma_grade.gyro_bias_rad_s, bias_heading, p.noise_unchecked)
 
     def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
-        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit.
-
-        Both are divided by the efficiency factor the reported σ carries, to seed the loops' covariance.
-        """
+        """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit, divided by
+        the efficiency factor the reported σ carries, to seed the loops' covariance (``_policy.pxi``)."""
         grade, site = self.p.coarse.grade, self.p.coarse.source.site
         bias_heading, bias_level = bias_limit_rad(grade, site.lat, site.gravity)
-        tilt2 = max((level_sigma_deg * DEG) ** 2 - bias_level**2, 0.0)
-        heading2 = max((heading_sigma_deg * DEG) ** 2 - bias_heading**2, 0.0)
-        return float(np.sqrt(tilt2 / ESTIMATOR_EFFICIENCY)), float(np.sqrt(heading2 / ESTIMATOR_EFFICIENCY))
+        return (noise_part(level_sigma_deg, bias_level, ESTIMATOR_EFFICIENCY),
+                noise_part(heading_sigma_deg, bias_heading, ESTIMATOR_EFFICIENCY))
 
     def record(self, t_epoch: float, t_sample: float, q_b_b0: np.ndarray,
                coarse: InertialCoarseAlignment) -> ResultRecord:

@@ -1,0 +1,49 @@
+# The fixed base's policy rules that both the compiled block loop (_blocks.pyx) and the Python steps take: written
+# once, here, and called from Python through the wrappers of _blocks.pyx and _compass.pyx.
+#
+# Units: time s, σ deg where named so, else rad.
+
+cdef double _geometric(const double* knots, const double* values, int n, double t) noexcept nogil:
+    """The gain schedule's σ at loop time ``t`` (compass.GainSchedule): between ``knots`` (n, increasing from 0)
+    interpolated geometrically, so the gains change smoothly; a value of 0 stays 0 until its knot (a loop not yet
+    on); after the last knot its value."""
+    cdef int j = 0
+    cdef double a, b, f
+    if t >= knots[n - 1]:
+        return values[n - 1]
+    while j + 1 < n and knots[j + 1] <= t:   # bisect_right − 1
+        j += 1
+    a, b = values[j], values[j + 1]
+    if a <= 0.0:
+        return 0.0 if b <= 0.0 or t < knots[j + 1] else b
+    f = (t - knots[j]) / (knots[j + 1] - knots[j])
+    return a * pow(b / a, f)
+
+
+cdef double _noise_part(double sigma_deg, double bias_rad, double efficiency) noexcept nogil:
+    """The noise part (rad) of a coarse σ (deg): the bias limit ``bias_rad`` taken out and the estimator's efficiency
+    factor divided out (sensor_model.ESTIMATOR_EFFICIENCY): what seeds the compass loops and what the hand-over
+    judges."""
+    cdef double rad = sigma_deg * (M_PI / 180.0)
+    return sqrt(max(rad * rad - bias_rad * bias_rad, 0.0) / efficiency)
+
+
+cdef bint _handover_due(bint by_time, double time_s, double least_s, double sigma_deg, double unknown_deg,
+                        double efficiency, double elapsed_s, long n_obs, const double* terms) noexcept nogil:
+    """Whether the coarse stage hands over to the compass loops after ``elapsed_s``: at the configured ``time_s``
+    (``by_time``), or from ``least_s`` on once the noise part of the coarse heading σ is within ``sigma_deg``.
+    ``terms`` (FixedBase.handover_terms): the coarse heading σ's noise terms over T³, T and T⁵ (rad² sᵏ), its bias
+    limit squared (rad²), the gyro bias (rad/s) of the grade σ takes, the datasheet's heading bias limit (rad), and
+    1 while the data's noise has not checked σ. The heading σ is sensor_model.inertial_alignment_sigma's from those
+    terms; a heading at the unknown angle's σ (``unknown_deg``) has no noise part to hand over."""
+    cdef double heading2, heading_deg
+    if by_time:
+        return elapsed_s >= time_s
+    if n_obs == 0 or elapsed_s < least_s or terms[6] != 0.0 or elapsed_s <= 0.0:
+        return False
+    heading2 = (terms[3] + pow(terms[4] * elapsed_s, 2.0)
+                + efficiency * (terms[0] / pow(elapsed_s, 3.0) + terms[1] / elapsed_s + terms[2] / pow(elapsed_s, 5.0)))
+    heading_deg = min(sqrt(heading2) / (M_PI / 180.0), unknown_deg)
+    if heading_deg >= unknown_deg:
+        return False
+    return _noise_part(heading_deg, terms[5], efficiency) / (M_PI / 180.0) <= sigma_deg
