@@ -22,7 +22,7 @@ from .align._strapdown import rows_offset
 from .align.coarse import AttitudeSolution, InertialCoarseAlignment, stepped_up
 from .align.consistency import ConsistencyMonitor
 from .align.conventions import DEG, dcm_from_quat, quat_from_dcm
-from .align.disturbance import SUSPECT_FRACTION, MotionMonitor
+from .align.disturbance import MotionMonitor
 from .align.earth import Site
 from .align.fine import FineAlignment
 from .align.noise_check import MIN_OUTLIER_COUNT, OUTLIER_FACTOR, SETTLE_S, VERDICT_STEPS, NoiseMeter
@@ -98,9 +98,7 @@ def fixed_base_blocks(pipeline: AlignmentPipeline) -> FixedBaseBlocks | None:
     settle = round(SETTLE_S / noise.step_s) if noise is not None else 0
     solver = pipeline.coarse.solver
     motion = pipeline.motion
-    # a window's velocity that asks for σ: the quarter of the threshold, which grows with the gyros' drift
-    suspect = ((SUSPECT_FRACTION * motion.threshold_mps, SUSPECT_FRACTION * motion.drift_mps_per_s)
-               if motion is not None else (0.0, 0.0))
+    suspect = motion.suspect_line if motion is not None else (0.0, 0.0)   # a window's velocity that asks for σ
     return FixedBaseBlocks(pipeline.site.lat, pipeline.site.gravity, solver, _GAIN_POLICY[solver.solver], noise,
                            (settle, OUTLIER_FACTOR, MIN_OUTLIER_COUNT, VERDICT_STEPS), motion, *suspect,
                            pipeline.config.disturbance.check_interval_s, fine, pipeline.config.fine.compass,

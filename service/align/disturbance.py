@@ -103,6 +103,13 @@ class MotionMonitor:
         """The base may be starting to move (see :data:`SUSPECT_FRACTION`), as of the last check."""
 
     @property
+    def suspect_line(self) -> tuple[float, float]:
+        """A window's velocity above a + b·t (m/s, t the alignment's elapsed time in s) may be the base starting to
+        move: (a, b), :data:`SUSPECT_FRACTION` of the threshold, which grows with the gyros' drift. The rule the
+        compiled block loop stops at (_blocks.pyx) and :meth:`check` applies."""
+        return SUSPECT_FRACTION * self.threshold_mps, SUSPECT_FRACTION * self.drift_mps_per_s
+
+    @property
     def ring(self) -> tuple[int, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """The checks' ring, for a compiled loop that stores its checks itself (_blocks.pyx): the window in checks n,
         and n + 1 slots of elapsed time (s), α and β (m/s, b0 and n0 axes) and C_b0^n0, written in place; with
@@ -133,7 +140,8 @@ class MotionMonitor:
             self.window_speed_mps = speed
             # the heading's move over the window only once the velocity asks (a check every control step)
             threshold = self.threshold_mps + self.drift_mps_per_s * elapsed_s
-            self.suspect = speed > SUSPECT_FRACTION * threshold and (
+            suspect_mps, suspect_mps_per_s = self.suspect_line
+            self.suspect = speed > suspect_mps + suspect_mps_per_s * elapsed_s and (
                 abs(misalignment(C_b0_n0, self._C[oldest])[2]) > SUSPECT_SIGMAS * sigma_rad(elapsed_s)[0])
             if speed <= threshold:
                 return None
