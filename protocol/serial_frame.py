@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._frames import imu_run
+from ._frames import ImuRun
 from .buffers import read_sized
 from .counters import Counters, count
 from .framing import next_sync
@@ -65,6 +65,22 @@ IMU_ROW_COLUMNS = 9
 """A decoded IMU frame's row: t (s), Δθ (3) rad, Δv (3) m/s, the status word, saturated (1.0: a value at full
 scale)."""
 _FAST = sys.byteorder == "little"   # the compiled pass reads the little-endian fields as the host's integers
+
+
+def _crc32_table() -> np.ndarray:
+    """CRC-32's table as zlib computes it: entry n is the register after byte n from a zero register (zlib's
+    ``crc32(bytes([n]), 0xFFFFFFFF)`` un-inverted), so the compiled pass checks what zlib.crc32 checks."""
+    return np.array([zlib.crc32(bytes([n]), 0xFFFFFFFF) ^ 0xFFFFFFFF for n in range(256)], dtype=np.uint32)
+
+
+def _offset(prefix: str) -> int:
+    """The byte offset in the header of the field after the ``HEADER`` format's ``prefix``."""
+    return struct.calcsize("<" + prefix)
+
+
+IMU_RUN = ImuRun(SYNC, VERSION, MSG_IMU, HEADER.size, _offset("2sBB"), _offset("2sBBH"), _offset("2sBBHH"),
+                 _offset("2sBBHHQ"), IMU_PAYLOAD.size, CRC.size, DTHETA_LSB_RAD, DV_LSB_MPS, INT32_MAX, _crc32_table())
+"""The compiled pass over runs of plain IMU frames (protocol/_frames.pyx), with this module's layout."""
 MAX_PAYLOAD = 1024
 """Longest payload any message type may declare; a longer length field is a corrupt header."""
 AIDING_KIND_CODES = {"odo": 1, "gnss": 2, "master": 3}
@@ -295,7 +311,7 @@ class FrameDecoder:
         rows = read_sized(len(buf) // IMU_FRAME_BYTES, IMU_ROW_COLUMNS) if fast else None
         while True:
             if rows is not None and self.sequence.last is not None:
-                n, pos, last = imu_run(buf, pos, self.sequence.last, rows[used:])
+                n, pos, last = IMU_RUN.run(buf, pos, self.sequence.last, rows[used:])
                 if n:
                     self.sequence.follow(last)
                     self.counters.frames += n

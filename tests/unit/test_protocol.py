@@ -489,3 +489,11 @@ def test_a_record_is_finite_when_every_number_is(numbers, mount_q, finite):
     record = ResultRecord(t, "fine", (w, x, y, z), pitch, roll, heading, heading_sigma, level_sigma, False, rho,
                           math.inf, 0, mount_q, None if mount_q is None else 0.1)
     assert record.finite == finite
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.binary(min_size=0, max_size=200))
+def test_the_compiled_pass_s_crc_table_from_zlib_checks_what_zlib_checks(data):
+    """The fast path's CRC-32 table is built from zlib's (serial_frame._crc32_table), not written twice."""
+    from sinsalign.protocol.serial_frame import IMU_RUN
+    assert IMU_RUN.crc32(np.frombuffer(data, np.uint8).copy()) == zlib.crc32(data)
