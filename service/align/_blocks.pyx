@@ -244,7 +244,7 @@ cdef class FixedBaseBlocks:
         cdef double[::1] V, stored_dt
         cdef Py_ssize_t stored = 0, capacity = 0
         cdef bint passes_done = True, active = False
-        cdef double handover_terms[7]
+        cdef double handover_terms[COARSE_TERMS + 2]
         cdef double I_E = 0.0, I_N = 0.0, y = 0.0, t_loop_s = 0.0, earth_sign = 1.0, vrw2 = 0.0, arw2 = 0.0
         cdef bint azimuth_on = False
         if self.with_fine:
@@ -400,11 +400,11 @@ cdef class FixedBaseBlocks:
 
 def handover_due(bint by_time, double time_s, double least_s, double sigma_deg, double unknown_deg, double efficiency,
                  double elapsed_s, long n_obs, terms) -> bool:
-    """Whether the coarse stage hands over to the compass loops (_policy.pxi ``_handover_due``; ``terms`` the seven of
+    """Whether the coarse stage hands over to the compass loops (_policy.pxi ``_handover_due``; ``terms`` those of
     FixedBase.handover_terms): the rule the compiled loop applies, for the Python steps."""
-    cdef double held[7]
+    cdef double held[COARSE_TERMS + 2]
     cdef int i
-    for i in range(7):
+    for i in range(COARSE_TERMS + 2):
         held[i] = terms[i]
     return _handover_due(by_time, time_s, least_s, sigma_deg, unknown_deg, efficiency, elapsed_s, n_obs, held)
 

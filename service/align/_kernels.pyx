@@ -9,17 +9,17 @@ order, where numpy's BLAS may add them in another: those agree to the last few b
 
 Units are SI: time s, angles rad, α and β m/s; frames as in service/align/earth.py and noise_check.py.
 """
-from libc.math cimport cos, fabs, isfinite, pow, sin, sqrt
+from libc.math cimport M_PI, cos, fabs, isfinite, pow, sin, sqrt
 
 include "_linalg.pxi"
 include "_quaternion.pxi"
 include "_fixed_site.pxi"
 include "_noise_feed.pxi"
 include "_fold.pxi"
+include "_policy.pxi"
 
 import numpy as np
 
-cdef double SWING_RIDGE = 1e-12   # service/align/swing_bias.RIDGE
 
 
 def beta_fixed_at(double lat, double gravity, double t):
@@ -292,10 +292,10 @@ cdef inline double _at_least(double x, double floor) noexcept nogil:
 def swing_normal_equations(const double[:] elapsed_s, const double[:, :] q_b_b0, const double[:, :] alpha,
                            double vrw2, double t_last, const double[:] basis_last, const double[:] alpha_last,
                            const double[:, :] C_last, const double[:, :] M_last, const double[:, :] normal_last,
-                           const double[:] rhs_last):
+                           const double[:] rhs_last, double ridge):
     """SwingBias.correct's sums over K observations (elapsed (K,) s, C_b^b0 (K, 4), α (K, 3) m/s) from the fit's
     state at the last one: for each, the equilibrated normal system of the fit up to it, ready for the solve
-    (matrix with the ridge (K, 12, 12), right side (K, 12), the scale (K, 12) that takes its solution back to the
+    (matrix with the ``ridge`` on its diagonal (K, 12, 12), right side (K, 12), the scale (K, 12) that takes its solution back to the
     parameters), M(t) (K, 3, 3) and E(t)'s integrals (K, 3); then the new state's C_b^b0 (3, 3), normal matrix
     (12, 12) and right side (12,). swing_bias.py's numpy form operation for operation: the same bits."""
     cdef long n = elapsed_s.shape[0], k, r, c, i, j
@@ -359,7 +359,7 @@ def swing_normal_equations(const double[:] elapsed_s, const double[:, :] q_b_b0,
             scale[k, i] = 1.0 / sqrt(_at_least(normal[i, i], 1e-300))
         for i in range(12):
             for j in range(12):
-                scaled[k, i, j] = normal[i, j] * scale[k, i] * scale[k, j] + (SWING_RIDGE if i == j else 0.0)
+                scaled[k, i, j] = normal[i, j] * scale[k, i] * scale[k, j] + (ridge if i == j else 0.0)
             scaled_rhs[k, i] = scale[k, i] * rhs[i]
         for i in range(9):
             C_prev[i] = C[i]
@@ -497,3 +497,17 @@ def recursive_k_fold(const double[:, ::1] K, const double[:, :, ::1] dK, const d
     if count:
         _fold(&Kn[0, 0], &dK[0, 0, 0], &trace_R[0], count, &m, &trace_P, &n, &rho, trace_Q, policy, fixed_rho)
     return K_out, m, trace_P, n, rho
+
+
+def coarse_variances(const double[::1] terms, double efficiency, const double[::1] elapsed_s):
+    """The coarse stage's σ model (_policy.pxi ``_coarse_variances``: the rule the compiled hand-over test applies):
+    heading² and level² (rad², each (N,)) after each of ``elapsed_s`` (N,) s, all positive, of a grade's and site's
+    ``terms`` (sensor_model._SigmaTerms.kernel)."""
+    cdef Py_ssize_t n = elapsed_s.shape[0], k
+    if terms.shape[0] != COARSE_TERMS:
+        raise ValueError(f"coarse_variances: {COARSE_TERMS} terms")
+    heading_out, level_out = np.empty(n), np.empty(n)
+    cdef double[::1] heading2 = heading_out, level2 = level_out
+    for k in range(n):
+        _coarse_variances(&terms[0], efficiency, elapsed_s[k], &heading2[k], &level2[k])
+    return heading_out, level_out

@@ -28,22 +28,36 @@ cdef double _noise_part(double sigma_deg, double bias_rad, double efficiency) no
     return sqrt(max(rad * rad - bias_rad * bias_rad, 0.0) / efficiency)
 
 
+cdef enum:
+    COARSE_TERMS = 9   # the coarse σ model's terms of a grade and site (sensor_model._SigmaTerms.kernel)
+
+
+cdef void _coarse_variances(const double* terms, double efficiency, double T, double* heading2,
+                            double* level2) noexcept nogil:
+    """The coarse stage's σ model (sensor_model.inertial_alignment_sigma), heading² and level² in rad² after T > 0 s:
+    the bias limit, the gyro bias's drift ε T, and the noise of a least-squares fit of the α history scaled by the
+    estimator's efficiency. ``terms``: the accelerometer's white noise in heading over T³, the gyro's walk over T, a
+    bounded disturbance over T⁵ (rad² sᵏ), the heading bias limit² (rad²), the gyro bias (rad/s), the level bias
+    limit² (rad²), and in level the accelerometer's noise over T, the walk times T and the disturbance over T³."""
+    cdef double drift2 = pow(terms[4] * T, 2.0)
+    heading2[0] = terms[3] + drift2 + efficiency * (terms[0] / pow(T, 3.0) + terms[1] / T + terms[2] / pow(T, 5.0))
+    level2[0] = terms[5] + drift2 + efficiency * (terms[6] / T + terms[7] * T + terms[8] / pow(T, 3.0))
+
+
 cdef bint _handover_due(bint by_time, double time_s, double least_s, double sigma_deg, double unknown_deg,
                         double efficiency, double elapsed_s, long n_obs, const double* terms) noexcept nogil:
     """Whether the coarse stage hands over to the compass loops after ``elapsed_s``: at the configured ``time_s``
     (``by_time``), or from ``least_s`` on once the noise part of the coarse heading σ is within ``sigma_deg``.
-    ``terms`` (FixedBase.handover_terms): the coarse heading σ's noise terms over T³, T and T⁵ (rad² sᵏ), its bias
-    limit squared (rad²), the gyro bias (rad/s) of the grade σ takes, the datasheet's heading bias limit (rad), and
-    1 while the data's noise has not checked σ. The heading σ is sensor_model.inertial_alignment_sigma's from those
-    terms; a heading at the unknown angle's σ (``unknown_deg``) has no noise part to hand over."""
-    cdef double heading2, heading_deg
+    ``terms`` (FixedBase.handover_terms): the coarse σ model's :data:`COARSE_TERMS` of the grade σ takes, then the
+    datasheet's heading bias limit (rad), and 1 while the data's noise has not checked σ. A heading at the unknown
+    angle's σ (``unknown_deg``) has no noise part to hand over."""
+    cdef double heading2, level2, heading_deg
     if by_time:
         return elapsed_s >= time_s
-    if n_obs == 0 or elapsed_s < least_s or terms[6] != 0.0 or elapsed_s <= 0.0:
+    if n_obs == 0 or elapsed_s < least_s or terms[COARSE_TERMS + 1] != 0.0 or elapsed_s <= 0.0:
         return False
-    heading2 = (terms[3] + pow(terms[4] * elapsed_s, 2.0)
-                + efficiency * (terms[0] / pow(elapsed_s, 3.0) + terms[1] / elapsed_s + terms[2] / pow(elapsed_s, 5.0)))
+    _coarse_variances(terms, efficiency, elapsed_s, &heading2, &level2)
     heading_deg = min(sqrt(heading2) / (M_PI / 180.0), unknown_deg)
     if heading_deg >= unknown_deg:
         return False
-    return _noise_part(heading_deg, terms[5], efficiency) / (M_PI / 180.0) <= sigma_deg
+    return _noise_part(heading_deg, terms[COARSE_TERMS], efficiency) / (M_PI / 180.0) <= sigma_deg

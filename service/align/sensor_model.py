@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._kernels import coarse_variances
 from .conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
 from .earth import OMEGA_IE
 
@@ -116,6 +117,7 @@ class _SigmaTerms:
     bounded_heading: float  # rad² s⁵: a bounded disturbance of α in heading, over T⁵
     acc_level: float       # 4 VRW² (m²/s³), over g² T
     gravity2: float
+    kernel: np.ndarray     # the model's terms as the compiled σ model takes them (_policy.pxi, _coarse_variances)
 
 
 def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
@@ -127,10 +129,17 @@ def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
         if grade is recent[0] and lat == recent[1] and gravity == recent[2]:
             return recent[3]
     bias, w_cos, cos_lat = _bias_terms(grade.acc_bias_ms2, grade.gyro_bias_rad_s, lat, gravity)
-    terms = _SigmaTerms(bias, (bias[0] ** 2, bias[1] ** 2), 12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2,
-                        1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2,
-                        320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * cos_lat) ** 2,
-                        4.0 * grade.acc_vrw_ms_rts**2, gravity**2)
+    bias2 = (bias[0] ** 2, bias[1] ** 2)
+    acc_heading = 12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2
+    gyro_heading = 1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2
+    bounded_heading = 320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * cos_lat) ** 2
+    acc_level, gravity2 = 4.0 * grade.acc_vrw_ms_rts**2, gravity**2
+    # white noise of density S in α itself: LS over (t, t²) leaves Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
+    # Var(δθ) = 3 S / (g² T³)
+    kernel = np.array([acc_heading, gyro_heading, bounded_heading, bias2[0], grade.gyro_bias_rad_s, bias2[1],
+                       acc_level / gravity2, grade.gyro_arw_rad_rts**2 / 3.0,
+                       3.0 * grade.base_motion_m_rts**2 / gravity2])
+    terms = _SigmaTerms(bias, bias2, acc_heading, gyro_heading, bounded_heading, acc_level, gravity2, kernel)
     _recent_terms = ((grade, lat, gravity, terms), *_recent_terms[:-1])
     return terms
 
@@ -185,17 +194,13 @@ def inertial_alignment_sigmas(grade: SensorGrade, lat: float, gravity: float, el
 
 def _inertial_alignment_variances(grade: SensorGrade, lat: float, gravity: float,
                                   T: float | np.ndarray) -> tuple[float | np.ndarray, float | np.ndarray]:
-    """(heading², level²) in rad² of :func:`inertial_alignment_sigma` after T (s: a float, or an array of them)."""
-    terms = _sigma_terms(grade, lat, gravity)
-    drift2 = (grade.gyro_bias_rad_s * T) ** 2
-    # white noise of density S in α itself: LS over (t, t²) leaves Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
-    # Var(δθ) = 3 S / (g² T³)
-    noise_heading2 = terms.acc_heading / T**3 + terms.gyro_heading / T + terms.bounded_heading / T**5
-    bounded = grade.base_motion_m_rts**2
-    noise_level2 = (terms.acc_level / (terms.gravity2 * T) + grade.gyro_arw_rad_rts**2 * T / 3.0
-                    + 3.0 * bounded / (terms.gravity2 * T**3))
-    return (terms.bias2[0] + drift2 + ESTIMATOR_EFFICIENCY * noise_heading2,
-            terms.bias2[1] + drift2 + ESTIMATOR_EFFICIENCY * noise_level2)
+    """(heading², level²) in rad² of :func:`inertial_alignment_sigma` after T (s: a float, or an array of them): the
+    compiled model (``_policy.pxi``), which the fixed base's compiled hand-over test applies too."""
+    kernel = _sigma_terms(grade, lat, gravity).kernel
+    if np.ndim(T) == 0:
+        heading2, level2 = coarse_variances(kernel, ESTIMATOR_EFFICIENCY, np.array([float(T)]))
+        return float(heading2[0]), float(level2[0])
+    return coarse_variances(kernel, ESTIMATOR_EFFICIENCY, np.ascontiguousarray(T, dtype=float).ravel())
 
 
 def heading_noise_variances(grade: SensorGrade, lat: float, gravity: float, elapsed_s: float) -> tuple[float, float]:

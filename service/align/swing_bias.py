@@ -95,7 +95,7 @@ class SwingBias:
             t_last, basis_last, alpha_last, C_last, M_last = self._last
             scaled, scaled_rhs, scale, M, basis, C, normal, rhs = swing_normal_equations(
                 elapsed_s[part], q_b_b0[part], alpha[part], self._vrw2, t_last, basis_last, alpha_last, C_last,
-                M_last, self.normal, self.rhs)
+                M_last, self.normal, self.rhs, RIDGE)
             self._last = (float(elapsed_s[part][-1]), basis[-1], alpha[part][-1].copy(), C, M[-1])
             if fits:
                 self.normal, self.rhs = normal, rhs

@@ -115,16 +115,14 @@ class FixedBase:
                             self.handover_terms())
 
     def handover_terms(self) -> tuple[float, ...]:
-        """What the compiled loop (service/align/_blocks.pyx) needs of the hand-over test: the noise terms of the
-        coarse σ's heading (sensor_model.inertial_alignment_sigma: the accelerometer's over T³, the gyro's over T,
-        a bounded disturbance's over T⁵, rad² sᵏ), its bias limit squared (rad²) and the gyro bias (rad/s) of the
-        grade σ takes, the datasheet's heading bias limit (rad) and whether the data's noise has checked σ."""
+        """What the hand-over test (``_policy.pxi``, in the compiled loop and the Python steps alike) needs: the coarse
+        σ model's terms of the grade σ takes (sensor_model._SigmaTerms.kernel), the datasheet's heading bias limit
+        (rad) and whether the data's noise has yet to check σ."""
         p = self.p
         coarse = p.coarse
         terms = _sigma_terms(coarse.sigma_grade, coarse.source.site.lat, coarse.source.site.gravity)
         bias_heading, _ = bias_limit_rad(coarse.grade, coarse.source.site.lat, coarse.source.site.gravity)
-        return (terms.acc_heading, terms.gyro_heading, terms.bounded_heading, terms.bias2[0],
-                coarse.sigma_grade.gyro_bias_rad_s, bias_heading, p.noise_unchecked)
+        return (*terms.kernel, bias_heading, p.noise_unchecked)
 
     def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
         """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit, divided by
