@@ -36,6 +36,12 @@ def beyond_3_sigma(scenario, seed: int) -> tuple[int, float]:
     return int((ratio > 3.0).sum()), float(ratio.max())
 
 
+def assert_honest(scenario, seeds) -> None:
+    for seed in seeds:
+        count, worst = beyond_3_sigma(scenario, seed)
+        assert count == 0, f"seed {seed}: {count} records beyond 3σ (worst {worst:.1f}σ)"
+
+
 def indexed(positions: int):
     scenario = get_scenario("turntable-index")
     return replace(scenario, motion=turntable_index(positions), duration_s=300.0 * positions)
@@ -43,17 +49,13 @@ def indexed(positions: int):
 
 @pytest.mark.parametrize("positions", [2, 3, 4])
 def test_an_indexed_table_is_honest_through_its_turns(positions):
-    for seed in (40, 41, 42):
-        count, worst = beyond_3_sigma(indexed(positions), seed)
-        assert count == 0, f"seed {seed}: {count} records beyond 3σ (worst {worst:.1f}σ)"
+    assert_honest(indexed(positions), (40, 41, 42))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("positions", [2, 3, 4])
 def test_twenty_unseen_seeds_are_honest_through_their_turns(positions):
-    for seed in range(43, 63):
-        count, worst = beyond_3_sigma(indexed(positions), seed)
-        assert count == 0, f"seed {seed}: {count} records beyond 3σ (worst {worst:.1f}σ)"
+    assert_honest(indexed(positions), range(43, 63))
 
 
 def rotating(rate_deg_s: float):
@@ -64,14 +66,10 @@ def rotating(rate_deg_s: float):
 
 @pytest.mark.parametrize("rate_deg_s", [0.05, 0.2, 1.0])
 def test_a_continuously_rotating_table_is_honest(rate_deg_s):
-    for seed in (40, 41, 42):
-        count, worst = beyond_3_sigma(rotating(rate_deg_s), seed)
-        assert count == 0, f"seed {seed}: {count} records beyond 3σ (worst {worst:.1f}σ)"
+    assert_honest(rotating(rate_deg_s), (40, 41, 42))
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("rate_deg_s", [0.03, 0.08, 0.2, 1.0, 5.0])
 def test_twenty_unseen_seeds_are_honest_on_a_rotating_table(rate_deg_s):
-    for seed in range(43, 63):
-        count, worst = beyond_3_sigma(rotating(rate_deg_s), seed)
-        assert count == 0, f"seed {seed}: {count} records beyond 3σ (worst {worst:.1f}σ)"
+    assert_honest(rotating(rate_deg_s), range(43, 63))
