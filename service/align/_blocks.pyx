@@ -269,7 +269,6 @@ cdef class FixedBaseBlocks:
         cdef double beta[3]
         cdef double C[9]
         cdef double gained[2]
-        cdef double ws2 = self.loops_gravity / self.radius_m if self.with_fine else 1.0
         cdef double level_s, azimuth_s, t_end, elapsed_s, dt_s
         cdef const double* F
         cdef const double* a
@@ -325,17 +324,12 @@ cdef class FixedBaseBlocks:
                 if active:   # CompassLoops.step: the schedule's gains, the azimuth switch, F, Q, the step
                     level_s = _geometric(self.knots, self.level_sigma, self.n_knots, t_loop_s)
                     azimuth_s = _geometric(self.knots, self.azimuth_sigma, self.n_knots, t_loop_s)
-                    key[0] = 3.0 * level_s
-                    key[1] = 4.0 * pow(level_s, 2.0) / ws2 - 1.0
-                    key[2] = 2.0 * pow(level_s, 3.0) / self.loops_gravity
+                    _level_gains(level_s, self.loops_gravity, self.radius_m, &key[0])
                     if azimuth_s > 0.0 and not azimuth_on:
                         azimuth_on, I_N, y = True, 0.0, 0.0
                     if azimuth_on:
                         key[3] = 1.0
-                        key[4] = 2.0 * azimuth_s
-                        key[5] = 4.0 * pow(azimuth_s, 2.0) / ws2 - 1.0
-                        key[6] = 2.0 * azimuth_s
-                        key[7] = 4.0 * pow(azimuth_s, 4.0) / self.loops_gravity
+                        _azimuth_gains(azimuth_s, self.loops_gravity, self.radius_m, &key[4])
                     else:
                         key[3] = key[4] = key[5] = key[6] = key[7] = 0.0
                     key[8], key[9] = earth_sign, dt_s

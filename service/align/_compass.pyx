@@ -89,3 +89,17 @@ def schedule_sigma(const double[::1] knots, const double[::1] values, double t) 
     """The gain schedule's σ at loop time ``t`` s (_policy.pxi ``_geometric``: the rule the compiled block loop
     applies), of ``values`` at ``knots`` (same length, increasing from 0)."""
     return _geometric(&knots[0], &values[0], knots.shape[0], t)
+
+
+def level_gains(double sigma, double gravity, double radius_m) -> tuple:
+    """(K1, K2, K3) of the third-order level loop with poles −σ, −σ ± jσ (_policy.pxi: the compiled loop's rule)."""
+    cdef double K[3]
+    _level_gains(sigma, gravity, radius_m, K)
+    return K[0], K[1], K[2]
+
+
+def azimuth_gains(double sigma, double gravity, double radius_m) -> tuple:
+    """(K1, K2, K3, K4) of the fourth-order azimuth loop with double poles −σ ± jσ (_policy.pxi)."""
+    cdef double K[4]
+    _azimuth_gains(sigma, gravity, radius_m, K)
+    return K[0], K[1], K[2], K[3]

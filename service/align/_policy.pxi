@@ -20,6 +20,21 @@ cdef double _geometric(const double* knots, const double* values, int n, double 
     return a * pow(b / a, f)
 
 
+cdef void _level_gains(double sigma, double gravity, double radius_m, double* K) noexcept nogil:
+    """(K1, K2, K3) of the third-order level loop with poles −σ, −σ ± jσ (σ rad/s; Schuler ω_s² = g / R)."""
+    K[0] = 3.0 * sigma
+    K[1] = 4.0 * pow(sigma, 2.0) / (gravity / radius_m) - 1.0
+    K[2] = 2.0 * pow(sigma, 3.0) / gravity
+
+
+cdef void _azimuth_gains(double sigma, double gravity, double radius_m, double* K) noexcept nogil:
+    """(K1, K2, K3, K4) of the fourth-order azimuth loop with double poles −σ ± jσ (σ rad/s)."""
+    K[0] = 2.0 * sigma
+    K[1] = 4.0 * pow(sigma, 2.0) / (gravity / radius_m) - 1.0
+    K[2] = 2.0 * sigma
+    K[3] = 4.0 * pow(sigma, 4.0) / gravity
+
+
 cdef double _noise_part(double sigma_deg, double bias_rad, double efficiency) noexcept nogil:
     """The noise part (rad) of a coarse σ (deg): the bias limit ``bias_rad`` taken out and the estimator's efficiency
     factor divided out (sensor_model.ESTIMATOR_EFFICIENCY): what seeds the compass loops and what the hand-over

@@ -44,7 +44,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._attitude import fine_record_angles
-from ._compass import compass_step, compass_steps, platform_attitude, schedule_sigma, transition
+from ._compass import (
+    azimuth_gains,
+    compass_step,
+    compass_steps,
+    level_gains,
+    platform_attitude,
+    schedule_sigma,
+    transition,
+)
 from .conventions import EYE3, skew
 from .earth import OMEGA_IE, Site, radii
 from .sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, AttitudeSigma, SensorGrade, bias_limit_rad
@@ -55,18 +63,6 @@ F_CACHE_SIZE = 256
 # error-state indices of the covariance model
 VE, VN, PE, PN, PU, IE, IN, YU = range(8)
 _NO_AZIMUTH = (0.0, 0.0, 0.0, 0.0)   # the azimuth gains the compiled step is given while its loop is off (unread)
-
-
-def level_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float]:
-    """(K1, K2, K3) of a third-order level loop with poles −σ, −σ ± jσ."""
-    ws2 = gravity / radius_m
-    return 3.0 * sigma, 4.0 * sigma**2 / ws2 - 1.0, 2.0 * sigma**3 / gravity
-
-
-def azimuth_gains(sigma: float, gravity: float, radius_m: float) -> tuple[float, float, float, float]:
-    """(K1, K2, K3, K4) of the fourth-order azimuth loop with double poles −σ ± jσ."""
-    ws2 = gravity / radius_m
-    return 2.0 * sigma, 4.0 * sigma**2 / ws2 - 1.0, 2.0 * sigma, 4.0 * sigma**4 / gravity
 
 
 @dataclass(frozen=True, slots=True)
