@@ -334,8 +334,7 @@ cdef class FixedBaseBlocks:
                         key[3] = key[4] = key[5] = key[6] = key[7] = 0.0
                     key[8], key[9] = earth_sign, dt_s
                     F = self._transition_of(key)
-                    Q[0] = Q[9] = vrw2 * dt_s
-                    Q[18] = Q[27] = Q[36] = arw2 * dt_s
+                    _process_noise(vrw2, arw2, dt_s, Q)
                     _step(&C_b0_p[0, 0], &V[0], &I_E, &I_N, &y, dalpha, dt_s, key[0], key[1], key[2], azimuth_on,
                           key[4], key[5], key[6], key[7], earth_sign, self.omega_ie_n, self.omega_cos, self.omega_sin,
                           self.radius_m, F, Q, &P[0, 0])

@@ -103,3 +103,11 @@ def azimuth_gains(double sigma, double gravity, double radius_m) -> tuple:
     cdef double K[4]
     _azimuth_gains(sigma, gravity, radius_m, K)
     return K[0], K[1], K[2], K[3]
+
+
+def process_noise(double vrw2, double arw2, double dt_s):
+    """Q (8, 8) of one step of the compass loops (_policy.pxi ``_process_noise``: the compiled loop's rule)."""
+    out = np.zeros((8, 8))
+    cdef double[:, ::1] Q = out
+    _process_noise(vrw2, arw2, dt_s, &Q[0, 0])
+    return out

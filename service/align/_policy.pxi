@@ -35,6 +35,14 @@ cdef void _azimuth_gains(double sigma, double gravity, double radius_m, double* 
     K[3] = 4.0 * pow(sigma, 4.0) / gravity
 
 
+cdef void _process_noise(double vrw2, double arw2, double dt_s, double* Q) noexcept nogil:
+    """The compass loops' process noise of one step of ``dt_s`` s into the diagonal of Q (8 × 8, row-major, its other
+    entries left as they are): the velocity random walk² (m²/s³) on the two velocities, the angle random walk²
+    (rad²/s) on the three platform angles (compass.py's state order: VE, VN, PE, PN, PU, IE, IN, YU)."""
+    Q[0] = Q[9] = vrw2 * dt_s
+    Q[18] = Q[27] = Q[36] = arw2 * dt_s
+
+
 cdef double _noise_part(double sigma_deg, double bias_rad, double efficiency) noexcept nogil:
     """The noise part (rad) of a coarse σ (deg): the bias limit ``bias_rad`` taken out and the estimator's efficiency
     factor divided out (sensor_model.ESTIMATOR_EFFICIENCY): what seeds the compass loops and what the hand-over

@@ -50,6 +50,7 @@ from ._compass import (
     compass_steps,
     level_gains,
     platform_attitude,
+    process_noise,
     schedule_sigma,
     transition,
 )
@@ -310,9 +311,7 @@ class CompassLoops:
         if Q is None:
             if len(self._Q_cache) > 8:
                 self._Q_cache.clear()
-            Q = self._Q_cache[key] = np.zeros((8, 8))
-            Q[VE, VE] = Q[VN, VN] = self.grade.acc_vrw_ms_rts**2 * dt_s
-            Q[PE, PE] = Q[PN, PN] = Q[PU, PU] = self.grade.gyro_arw_rad_rts**2 * dt_s
+            Q = self._Q_cache[key] = process_noise(self.grade.acc_vrw_ms_rts**2, self.grade.gyro_arw_rad_rts**2, dt_s)
         self._Q_last = (dt_s, self.grade, Q)
         return Q
 
