@@ -511,3 +511,42 @@ def coarse_variances(const double[::1] terms, double efficiency, const double[::
     for k in range(n):
         _coarse_variances(&terms[0], efficiency, elapsed_s[k], &heading2[k], &level2[k])
     return heading_out, level_out
+
+
+def coarse_variances_one(const double[::1] terms, double efficiency, double elapsed_s) -> tuple:
+    """:func:`coarse_variances` at one time ``elapsed_s`` > 0 s: (heading², level²) rad²."""
+    cdef double heading2, level2
+    if terms.shape[0] != COARSE_TERMS:
+        raise ValueError(f"coarse_variances_one: {COARSE_TERMS} terms")
+    _coarse_variances(&terms[0], efficiency, elapsed_s, &heading2, &level2)
+    return heading2, level2
+
+
+def turning_bias_rows(const double[:, ::1] C_b0_n0, const double[:, ::1] tM, const double[:, ::1] t2M,
+                      const double[::1] tP, const double[::1] t2P, const double[:, :, ::1] earth, double T,
+                      double heading_gain, double gravity) -> tuple:
+    """turning_bias.TurningBiasTerm.variances' rows: with S = C_b0^n0 Σ t^k M Δt − (Σ t^k P_j Δt E_j) C_b0^n0 (k = 1,
+    2; E_j = I, [u×], u uᵀ in ``earth``), the heading row gain (2 / (g Ω cos L)) (−60 S1_N / T⁴ + 80 S2_N / T⁵) and
+    the tilt rows (48 S1_{E,N} / T³ − 60 S2_{E,N} / T⁴) / g; returns (|heading row|², the larger |tilt row|²) in
+    rad² per (m/s²)²."""
+    cdef double S1[2][3]
+    cdef double S2[2][3]
+    cdef double E1, E2, h, tilt, heading2 = 0.0, tilt2[2]
+    cdef int r, c, k
+    for r in range(2):   # the east and north rows
+        for c in range(3):
+            S1[r][c] = 0.0
+            S2[r][c] = 0.0
+            for k in range(3):
+                E1 = tP[0] * earth[0, r, k] + tP[1] * earth[1, r, k] + tP[2] * earth[2, r, k]
+                E2 = t2P[0] * earth[0, r, k] + t2P[1] * earth[1, r, k] + t2P[2] * earth[2, r, k]
+                S1[r][c] += C_b0_n0[r, k] * tM[k, c] - E1 * C_b0_n0[k, c]
+                S2[r][c] += C_b0_n0[r, k] * t2M[k, c] - E2 * C_b0_n0[k, c]
+    tilt2[0] = tilt2[1] = 0.0
+    for c in range(3):
+        h = heading_gain * (-60.0 * S1[1][c] / pow(T, 4.0) + 80.0 * S2[1][c] / pow(T, 5.0))
+        heading2 += h * h
+        for r in range(2):
+            tilt = (48.0 * S1[r][c] / pow(T, 3.0) - 60.0 * S2[r][c] / pow(T, 4.0)) / gravity
+            tilt2[r] += tilt * tilt
+    return heading2, max(tilt2[0], tilt2[1])

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._kernels import coarse_variances
+from ._kernels import coarse_variances, coarse_variances_one
 from .conventions import DEG, DH_TO_RS, DRH_TO_RRS, UG_TO_MS2
 from .earth import OMEGA_IE
 
@@ -198,8 +198,7 @@ def _inertial_alignment_variances(grade: SensorGrade, lat: float, gravity: float
     compiled model (``_policy.pxi``), which the fixed base's compiled hand-over test applies too."""
     kernel = _sigma_terms(grade, lat, gravity).kernel
     if np.ndim(T) == 0:
-        heading2, level2 = coarse_variances(kernel, ESTIMATOR_EFFICIENCY, np.array([float(T)]))
-        return float(heading2[0]), float(level2[0])
+        return coarse_variances_one(kernel, ESTIMATOR_EFFICIENCY, float(T))
     return coarse_variances(kernel, ESTIMATOR_EFFICIENCY, np.ascontiguousarray(T, dtype=float).ravel())
 
 

@@ -30,6 +30,7 @@ import math
 
 import numpy as np
 
+from ._kernels import turning_bias_rows
 from .conventions import dcm_from_quat, skew
 from .earth import OMEGA_IE, earth_turn_integrals
 
@@ -47,7 +48,7 @@ class TurningBiasTerm:
 
     def __init__(self, lat: float, gravity: float) -> None:
         u = np.array([0.0, math.cos(lat), math.sin(lat)])
-        self._earth = (np.eye(3), skew(u), np.outer(u, u))   # E(t) = P1 I + P2 [u×] + P3 u uᵀ
+        self._earth = np.stack((np.eye(3), skew(u), np.outer(u, u)))   # E(t) = P1 I + P2 [u×] + P3 u uᵀ
         self._gravity = gravity
         self._heading_gain = 2.0 / (gravity * OMEGA_IE * math.cos(lat))
         # at the last observation: t (s), C_b^{b0}, M (s), Σ t M Δt, Σ t² M Δt (3 × 3), Σ t P_j Δt, Σ t² P_j Δt (3,)
@@ -89,10 +90,7 @@ class TurningBiasTerm:
         if T <= 0.0 or not tM.any():
             return 0.0, 0.0
         # C_{b0}^{n0} E_b0 = (P1 I + P2 [u×] + P3 u uᵀ) C_{b0}^{n0}: the Earth axis enters through the attitude
-        eye, U, UU = self._earth
-        S1 = C_b0_n0 @ tM - (tP[0] * eye + tP[1] * U + tP[2] * UU) @ C_b0_n0
-        S2 = C_b0_n0 @ t2M - (t2P[0] * eye + t2P[1] * U + t2P[2] * UU) @ C_b0_n0
-        heading = self._heading_gain * (-60.0 * S1[1] / T**4 + 80.0 * S2[1] / T**5)   # the north row
-        tilt = (48.0 * S1[:2] / T**3 - 60.0 * S2[:2] / T**4) / self._gravity             # east and north rows
+        heading2, tilt2 = turning_bias_rows(np.ascontiguousarray(C_b0_n0, dtype=float), tM, t2M, tP, t2P, self._earth,
+                                            T, self._heading_gain, self._gravity)
         b2 = acc_bias_ms2**2
-        return b2 * float(heading @ heading), b2 * float(max(tilt[0] @ tilt[0], tilt[1] @ tilt[1]))
+        return b2 * heading2, b2 * tilt2
