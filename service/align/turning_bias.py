@@ -17,8 +17,8 @@ heading δψ over (t, t²) on [0, T] (docs/algorithms/coarse.md, "Accuracy limit
 
 so with d = D(t) ∇ and ∇ of 1-σ b on every axis, δψ and δθ are linear in ∇ through the running sums
 S1 = Σ t D Δt and S2 = Σ t² D Δt (3 × 3, one column per body axis of ∇), and their variances are b² times the
-squared norms of those rows. A static base has D = 0 and the term is nil; a swing of a few degrees leaves it far
-below the limit.
+squared norms of those rows. A static base has D = 0 and the term is nil; a swing of a few degrees adds to σ only in
+the first tens of seconds, while the Earth's term is still small.
 
 E_b0 needs the Earth axis in b0 axes, which the fit gives only as it goes; the sums are kept with E's scalar
 integrals apart (Σ t M Δt and Σ t P_j Δt), and the Earth axis enters when σ is asked for, with the attitude of
