@@ -46,7 +46,6 @@ cdef enum:
     KEY = 10      # level K1..K3, azimuth on, azimuth K1..K4, Earth-rate sign, step length
     MAX_KNOTS = 32
 
-cdef double DEG = M_PI / 180.0
 
 
 cdef class FixedBaseBlocks:
