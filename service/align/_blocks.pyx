@@ -8,8 +8,8 @@ the same functions the single kernels wrap (the .pxi files), in the order ``Alig
 same bits. It hands the block back to the pipeline's Python steps wherever they decide something (:meth:`run`
 returns which): a noise verdict due, the hand-over to the loops, the step that fills the loops' store (the
 stored-data passes start), a velocity that calls for the estimate's σ (a quarter of the motion threshold); the
-pipeline calls it only while nothing else is pending (no epoch, no passes under way, no motion episode:
-``pipeline._blocks_ready``).
+pipeline calls it only while nothing else is pending (no epoch, no passes under way, no motion episode: the
+pipeline's own readiness test).
 
 Units and frames as in the modules it stands in for: time s, α and β m/s (b0, n0 axes), rates rad/s, matrices
 row-major.

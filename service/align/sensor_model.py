@@ -108,16 +108,22 @@ def bias_limit_rad(grade: SensorGrade, lat: float, gravity: float) -> tuple[floa
 
 @dataclass(frozen=True, slots=True)
 class _SigmaTerms:
-    """What σ(T) takes of a grade and site, computed once: the bias limit (rad) and the noise terms' coefficients."""
+    """What σ(T) takes of a grade and site, computed once: the bias limit (rad) and the model's terms as the compiled
+    σ model takes them (``_policy.pxi`` ``_coarse_variances``): in heading the accelerometer's white noise over T³
+    (rad² s³), the gyro's angle random walk over T (rad² s) and a bounded disturbance of α over T⁵ (rad² s⁵), the bias
+    limit², the gyro bias (rad/s); in level the bias limit², the accelerometer's noise over T, the walk times T and
+    the disturbance over T³."""
 
     bias_rad: tuple[float, float]
-    bias2: tuple[float, float]
-    acc_heading: float     # rad² s³: the accelerometer's white noise in heading, over T³
-    gyro_heading: float    # rad² s: the gyro's angle random walk in heading, over T
-    bounded_heading: float  # rad² s⁵: a bounded disturbance of α in heading, over T⁵
-    acc_level: float       # 4 VRW² (m²/s³), over g² T
-    gravity2: float
-    kernel: np.ndarray     # the model's terms as the compiled σ model takes them (_policy.pxi, _coarse_variances)
+    kernel: np.ndarray
+
+    @property
+    def acc_heading(self) -> float:
+        return float(self.kernel[0])
+
+    @property
+    def gyro_heading(self) -> float:
+        return float(self.kernel[1])
 
 
 def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
@@ -129,19 +135,24 @@ def _sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> _SigmaTerms:
         if grade is recent[0] and lat == recent[1] and gravity == recent[2]:
             return recent[3]
     bias, w_cos, cos_lat = _bias_terms(grade.acc_bias_ms2, grade.gyro_bias_rad_s, lat, gravity)
-    bias2 = (bias[0] ** 2, bias[1] ** 2)
-    acc_heading = 12.0 * grade.acc_vrw_ms_rts**2 / (gravity * w_cos) ** 2
-    gyro_heading = 1.2 * grade.gyro_arw_rad_rts**2 / w_cos**2
-    bounded_heading = 320.0 * grade.base_motion_m_rts**2 / (gravity * OMEGA_IE * cos_lat) ** 2
-    acc_level, gravity2 = 4.0 * grade.acc_vrw_ms_rts**2, gravity**2
-    # white noise of density S in α itself: LS over (t, t²) leaves Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
+    vrw2, arw2, bounded = grade.acc_vrw_ms_rts**2, grade.gyro_arw_rad_rts**2, grade.base_motion_m_rts**2
+    # a least-squares fit of the α history over (t, t²): white accelerometer noise of density q = VRW² leaves
+    # Var(δψ) = 12 q / (g Ω cos L)² / T³ and Var(δθ) = 4 q / (g² T); a gyro walk Var(δψ) = 1.2 N² / (Ω cos L)² / T and
+    # Var(δθ) = N² T / 3; white noise of density S in α itself Var(δψ) = 320 S / (g Ω cos L)² / T⁵ and
     # Var(δθ) = 3 S / (g² T³)
-    kernel = np.array([acc_heading, gyro_heading, bounded_heading, bias2[0], grade.gyro_bias_rad_s, bias2[1],
-                       acc_level / gravity2, grade.gyro_arw_rad_rts**2 / 3.0,
-                       3.0 * grade.base_motion_m_rts**2 / gravity2])
-    terms = _SigmaTerms(bias, bias2, acc_heading, gyro_heading, bounded_heading, acc_level, gravity2, kernel)
+    kernel = np.array([12.0 * vrw2 / (gravity * w_cos) ** 2, 1.2 * arw2 / w_cos**2,
+                       320.0 * bounded / (gravity * OMEGA_IE * cos_lat) ** 2, bias[0] ** 2, grade.gyro_bias_rad_s,
+                       bias[1] ** 2, 4.0 * vrw2 / gravity**2, arw2 / 3.0, 3.0 * bounded / gravity**2])
+    kernel.flags.writeable = False
+    terms = _SigmaTerms(bias, kernel)
     _recent_terms = ((grade, lat, gravity, terms), *_recent_terms[:-1])
     return terms
+
+
+def coarse_sigma_terms(grade: SensorGrade, lat: float, gravity: float) -> np.ndarray:
+    """The coarse σ model's terms of a grade and site (read-only), as the compiled model takes them
+    (:class:`_SigmaTerms`): what the fixed base's compiled hand-over test is given."""
+    return _sigma_terms(grade, lat, gravity).kernel
 
 
 @functools.lru_cache(maxsize=64)

@@ -20,7 +20,7 @@ from ..align.compass import GainSchedule
 from ..align.conventions import DEG, dcm_from_quat, quat_from_dcm
 from ..align.fine import FineAlignment
 from ..align.observations import FixedSiteSource
-from ..align.sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, _sigma_terms, bias_limit_rad
+from ..align.sensor_model import ESTIMATOR_EFFICIENCY, SIGMA_UNKNOWN_DEG, bias_limit_rad, coarse_sigma_terms
 from ..align.solvers import make_solver
 from ..align.swing_bias import SwingBias
 from ..align.turning_bias import TurningBiasTerm
@@ -116,13 +116,13 @@ class FixedBase:
 
     def handover_terms(self) -> tuple[float, ...]:
         """What the hand-over test (``_policy.pxi``, in the compiled loop and the Python steps alike) needs: the coarse
-        σ model's terms of the grade σ takes (sensor_model._SigmaTerms.kernel), the datasheet's heading bias limit
+        σ model's terms of the grade σ takes (sensor_model.coarse_sigma_terms), the datasheet's heading bias limit
         (rad) and whether the data's noise has yet to check σ."""
         p = self.p
         coarse = p.coarse
-        terms = _sigma_terms(coarse.sigma_grade, coarse.source.site.lat, coarse.source.site.gravity)
+        terms = coarse_sigma_terms(coarse.sigma_grade, coarse.source.site.lat, coarse.source.site.gravity)
         bias_heading, _ = bias_limit_rad(coarse.grade, coarse.source.site.lat, coarse.source.site.gravity)
-        return (*terms.kernel, bias_heading, p.noise_unchecked)
+        return (*terms, bias_heading, p.noise_unchecked)
 
     def _noise_part(self, heading_sigma_deg: float, level_sigma_deg: float) -> tuple[float, float]:
         """1-sigma (tilt, heading) noise errors (rad) of a coarse solution: its σ without the bias limit, divided by
